@@ -1,0 +1,285 @@
+"""The chain runner: plan a path of converters from what the user gives to what
+they ask for, run it stage by stage with progress and timings, write
+``report.json``, and resume after a failure.
+
+Resuming: each finished stage is recorded in ``<out>/.gaslight-state.json``
+with a fingerprint of its converter, options and inputs (paths, sizes,
+modification times). A later run with the same fingerprint and the output
+still present skips the stage. Outputs are written atomically by converters,
+so a killed stage leaves nothing that looks finished.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import asdict, dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from . import colour
+from .atomic import write_text
+from .errors import GaslightError, InputError
+from .kinds import Artifact, Kind
+from .progress import Progress
+from .provenance import tool_version, versions
+from .registry import Converter, Registry, default_registry
+
+STATE_FILE = ".gaslight-state.json"
+REPORT_FILE = "report.json"
+
+
+@dataclass
+class Settings:
+    """Run-wide settings every converter may read."""
+
+    ocio_config: str = colour.BUILTIN_CONFIG
+    input_space: str = colour.DEFAULT_INPUT_SPACE
+    working_space: str = colour.DEFAULT_WORKING_SPACE
+    device: str = "cpu"
+    seed: int = 0
+
+    @classmethod
+    def resolved(cls, ocio_config: str | None = None, input_space: str | None = None,
+                 working_space: str | None = None, **kw: Any) -> Settings:
+        """Settings with the OCIO config resolved and the space names checked."""
+        uri = colour.resolve_config_uri(ocio_config)
+        return cls(
+            ocio_config=uri,
+            input_space=colour.resolve_space(input_space or colour.DEFAULT_INPUT_SPACE, uri),
+            working_space=colour.resolve_space(
+                working_space or colour.DEFAULT_WORKING_SPACE, uri),
+            **kw,
+        )
+
+
+@dataclass
+class StageContext:
+    inputs: dict[Kind, Artifact]
+    output: Path
+    settings: Settings
+    options: dict[str, Any]
+    progress: Progress
+
+    def input(self, kind: Kind) -> Artifact:
+        return self.inputs[kind]
+
+
+@dataclass
+class StageResult:
+    metadata: dict[str, Any] = field(default_factory=dict)
+    counts: dict[str, Any] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class StageRecord:
+    name: str
+    converter: str
+    inputs: dict[str, str]
+    output: str
+    status: str
+    seconds: float
+    counts: dict[str, Any] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+    metadata: dict[str, Any] = field(default_factory=dict)
+    error: str | None = None
+
+
+def plan(available: Iterable[Kind], target: Kind, registry: Registry,
+         choose: Mapping[str, str] | None = None) -> list[Converter]:
+    """Shortest list of converters that makes ``target`` from ``available``.
+
+    ``choose`` maps a step name to the converter the user picked for it
+    (e.g. ``{"uplift": "uplift.bracket"}``). Raises GaslightError when no path
+    exists, naming what is missing.
+    """
+    have = set(available)
+    choose = dict(choose or {})
+
+    def candidates(kind: Kind) -> list[Converter]:
+        convs = registry.producing(kind)
+        picked = [c for c in convs if choose.get(c.step) in (None, c.name)]
+        return picked
+
+    memo: dict[Kind, list[Converter] | None] = {}
+
+    def solve(kind: Kind, visiting: frozenset[Kind]) -> list[Converter] | None:
+        if kind in have:
+            return []
+        if kind in memo:
+            return memo[kind]
+        if kind in visiting:
+            return None
+        best: list[Converter] | None = None
+        for conv in candidates(kind):
+            steps: list[Converter] = []
+            for need in conv.inputs:
+                sub = solve(need, visiting | {kind})
+                if sub is None:
+                    break
+                steps += [s for s in sub if s not in steps]
+            else:
+                steps.append(conv)
+                if best is None or len(steps) < len(best):
+                    best = steps
+        memo[kind] = best
+        return best
+
+    result = solve(target, frozenset())
+    if result is None:
+        given = ", ".join(sorted(k.value for k in have)) or "nothing"
+        makers = ", ".join(c.name for c in registry.producing(target)) or "none is installed"
+        raise GaslightError(
+            f"no converter chain makes {target.value} from {given} "
+            f"(converters that make {target.value}: {makers})")
+    return result
+
+
+def _fingerprint_path(path: Path) -> list:
+    if not path.exists():
+        return [str(path), None]
+    if path.is_file():
+        st = path.stat()
+        return [str(path.resolve()), st.st_size, st.st_mtime_ns]
+    entries = []
+    for p in sorted(path.rglob("*")):
+        if p.is_file() and not p.name.startswith("."):
+            st = p.stat()
+            entries.append([str(p.relative_to(path)), st.st_size, st.st_mtime_ns])
+    return [str(path.resolve()), entries]
+
+
+def fingerprint(conv: Converter, inputs: Mapping[Kind, Artifact], options: Mapping,
+                settings: Settings) -> str:
+    blob = json.dumps({
+        "converter": conv.name,
+        "inputs": {k.value: _fingerprint_path(a.path) for k, a in sorted(inputs.items())},
+        "options": options,
+        "settings": asdict(settings),
+    }, sort_keys=True, default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+class ChainRun:
+    """One run of a planned chain into an output folder."""
+
+    def __init__(self, out_dir: str | Path, settings: Settings | None = None,
+                 registry: Registry | None = None, progress: Progress | None = None,
+                 command: list[str] | None = None):
+        self.out_dir = Path(out_dir)
+        self.settings = settings or Settings.resolved()
+        self.registry = registry or default_registry()
+        self.progress = progress or Progress()
+        self.command = command if command is not None else list(sys.argv)
+        self.records: list[StageRecord] = []
+        self.started = datetime.now(UTC)
+
+    # -- state for resuming -------------------------------------------------
+    def _load_state(self) -> dict:
+        path = self.out_dir / STATE_FILE
+        if not path.exists():
+            return {}
+        try:
+            return json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            return {}
+
+    def _save_state(self, state: dict) -> None:
+        write_text(self.out_dir / STATE_FILE, json.dumps(state, indent=1, sort_keys=True))
+
+    # -- running ------------------------------------------------------------
+    def run(self, given: Iterable[Artifact], targets: Iterable[Kind],
+            choose: Mapping[str, str] | None = None,
+            options: Mapping[str, Mapping[str, Any]] | None = None,
+            outputs: Mapping[Kind, Path] | None = None, resume: bool = True
+            ) -> dict[Kind, Artifact]:
+        """Make every kind in ``targets``; return every artifact known at the end.
+
+        ``options`` maps a step name to that step's options; ``outputs`` maps a
+        kind to where it should be written (default ``out_dir/<kind default>``).
+        """
+        artifacts: dict[Kind, Artifact] = {a.kind: a for a in given}
+        self.given = list(artifacts.values())
+        for art in self.given:
+            if not art.path.exists():
+                raise InputError("no such file or folder", art.path)
+        steps: list[Converter] = []
+        for target in targets:
+            for conv in plan(artifacts.keys() | {c.output for c in steps}, target,
+                             self.registry, choose):
+                if conv not in steps:
+                    steps.append(conv)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        state = self._load_state() if resume else {}
+        total = len(steps)
+        for index, conv in enumerate(steps, start=1):
+            stage_options = dict((options or {}).get(conv.step, {}))
+            inputs = {k: artifacts[k] for k in conv.inputs}
+            out_path = Path((outputs or {}).get(conv.output) or
+                            self.out_dir / conv.output.default_name)
+            key = fingerprint(conv, inputs, stage_options, self.settings)
+            label = f"{index}/{total} {conv.step}"
+            done = state.get(conv.step)
+            if done and done.get("fingerprint") == key and out_path.exists():
+                self.progress.message(f"[{label}] {conv.name}: already done, resuming after it")
+                record = StageRecord(**{**done["record"], "status": "resumed"})
+                self.records.append(record)
+                artifacts[conv.output] = Artifact(conv.output, out_path, record.metadata)
+                continue
+            self.progress.message(f"[{label}] {conv.name}: {conv.description}")
+            ctx = StageContext(inputs=inputs, output=out_path, settings=self.settings,
+                               options=stage_options, progress=self.progress.child(label))
+            t0 = time.perf_counter()
+            record = StageRecord(
+                name=conv.step, converter=conv.name,
+                inputs={k.value: str(a.path) for k, a in inputs.items()},
+                output=str(out_path), status="running", seconds=0.0)
+            try:
+                result = conv.run(ctx)
+            except BaseException as exc:
+                record.status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
+                record.error = str(exc) or type(exc).__name__
+                record.seconds = round(time.perf_counter() - t0, 3)
+                self.records.append(record)
+                self.write_report(status="failed")
+                raise
+            record.seconds = round(time.perf_counter() - t0, 3)
+            record.status = "done"
+            record.counts, record.metrics = result.counts, result.metrics
+            record.metadata = result.metadata
+            self.records.append(record)
+            artifacts[conv.output] = Artifact(conv.output, out_path, result.metadata)
+            state[conv.step] = {"fingerprint": key, "record": asdict(record)}
+            self._save_state(state)
+            self.write_report(status="running")
+            self.progress.message(f"[{label}] done in {record.seconds:.1f} s")
+        self.write_report(status="done")
+        return artifacts
+
+    def report(self, status: str) -> dict[str, Any]:
+        return {
+            "tool": "gaslight2usd",
+            "version": tool_version(),
+            "status": status,
+            "command": self.command,
+            "started": self.started.isoformat(timespec="seconds"),
+            "finished": datetime.now(UTC).isoformat(timespec="seconds"),
+            "inputs": [{"kind": a.kind.value, "path": str(a.path)}
+                       for a in getattr(self, "given", [])],
+            "colour": {"ocio_config": self.settings.ocio_config,
+                       "working_space": self.settings.working_space,
+                       "input_space": self.settings.input_space},
+            "stages": [asdict(r) for r in self.records],
+            "total_seconds": round(sum(r.seconds for r in self.records), 3),
+            "versions": versions(),
+        }
+
+    def write_report(self, status: str) -> Path:
+        path = self.out_dir / REPORT_FILE
+        write_text(path, json.dumps(self.report(status), indent=2, default=str))
+        return path

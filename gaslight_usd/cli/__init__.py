@@ -1,0 +1,1 @@
+"""The ``gaslight2usd`` command line: one module per subcommand."""

@@ -1,0 +1,35 @@
+"""``gaslight2usd info FILE...``: what an EXR, PLY or USD file holds."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..inspect import describe, format_facts
+from ._common import add_common, emit
+
+HELP = "print what an EXR/HDR image, 3DGS PLY or USD stage holds"
+DESCRIPTION = """\
+Print what a file holds: for images the size, channels, colour space, value
+range and dynamic range in stops; for 3DGS PLYs the splat count, SH degree,
+bounds and brightest colour; for USD stages the up axis, metersPerUnit, prims
+by type, ParticleField splat counts and variant sets.
+
+examples:
+  gaslight2usd info out/hdr/view_00.exr
+  gaslight2usd info out/splats.ply --json | jq .splats
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("info", help=HELP, description=DESCRIPTION,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("files", nargs="+", metavar="FILE", help="EXR, HDR, PLY or USD files")
+    add_common(p)
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    facts = [describe(f) for f in args.files]
+    text = "\n\n".join(format_facts(f) for f in facts)
+    emit(args, facts if len(facts) > 1 else facts[0], text)
+    return 0

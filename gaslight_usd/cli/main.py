@@ -1,0 +1,80 @@
+"""Entry point of ``gaslight2usd``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+import traceback
+
+from ..errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, GaslightError
+from ..provenance import tool_version
+from ._pending import register_pending
+
+# Subcommand -> module in this package; absent modules are "not built yet".
+SUBCOMMANDS = ["run", "hdr", "poses", "fit", "export", "hdri", "batch", "bench", "info"]
+
+EPILOG = """\
+exit status:
+  0    success
+  1    the work failed (a stage could not finish)
+  2    usage error, or a subcommand/method not built yet
+  3    bad input: a missing or unreadable file, an empty folder, NaN pixels,
+       an unknown colour space (the message names the file and the problem)
+  130  interrupted; finished outputs stay, nothing is left half-written
+
+Every subcommand takes --json (machine-readable result on stdout), -v and -q.
+Run 'gaslight2usd COMMAND --help' for each command's options and examples.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gaslight2usd",
+        description="Turn a handful of LDR photos of a set into its lighting: HDR "
+                    "Gaussian splats (GaSLight) as OpenUSD, EXR HDRIs and 3DGS PLY, "
+                    "colour-managed with OpenColorIO.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {tool_version()}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in SUBCOMMANDS:
+        try:
+            module = importlib.import_module(f"{__package__}._{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__package__}._{name}":
+                raise
+            register_pending(sub, name)
+            continue
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "handler", None):
+        parser.print_help()
+        return EXIT_USAGE
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        return int(args.handler(args) or 0)
+    except GaslightError as exc:
+        print(f"gaslight2usd: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("gaslight2usd: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as exc:  # an internal error: one line unless -v
+        if getattr(args, "verbose", False):
+            traceback.print_exc()
+        print(f"gaslight2usd: internal error: {type(exc).__name__}: {exc} "
+              "(run with -v for the traceback)", file=sys.stderr)
+        return EXIT_FAILED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,265 @@
+"""Image reading and EXR writing through OpenImageIO.
+
+Reads JPEG, PNG, TIFF (8/16-bit), EXR and Radiance HDR; honours EXIF
+orientation; returns float32 pixels with the colour space they are in. Writes
+EXR (half by default, float when values exceed the half range) carrying
+chromaticities, the colour-space name and provenance attributes, atomically.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import OpenImageIO as oiio
+
+from . import colour
+from .atomic import atomic_path
+from .errors import InputError
+
+LDR_EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+HDR_EXTENSIONS = (".exr", ".hdr")
+IMAGE_EXTENSIONS = LDR_EXTENSIONS + HDR_EXTENSIONS
+HALF_MAX = 65504.0
+
+
+@dataclass(frozen=True)
+class Exposure:
+    """A photo's exposure from EXIF, and its EV relative to ISO 100, f/1, 1 s.
+
+    ``relative = t * (iso / 100) / N**2`` is proportional to the pixel value a
+    given scene radiance produces; ``ev = log2(relative)``.
+    """
+
+    exposure_time: float | None
+    f_number: float | None
+    iso: float | None
+
+    @property
+    def known(self) -> bool:
+        return self.exposure_time is not None
+
+    @property
+    def relative(self) -> float:
+        t = self.exposure_time if self.exposure_time else 1.0
+        n = self.f_number if self.f_number else 1.0
+        iso = self.iso if self.iso else 100.0
+        return t * (iso / 100.0) / (n * n)
+
+    @property
+    def ev(self) -> float:
+        return math.log2(self.relative)
+
+
+@dataclass
+class Image:
+    """Float32 pixels ``(H, W, 3)`` and what they hold."""
+
+    pixels: np.ndarray
+    colour_space: str
+    path: Path | None = None
+    exposure: Exposure = field(default_factory=lambda: Exposure(None, None, None))
+    bit_depth: str = "float"
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def height(self) -> int:
+        return int(self.pixels.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.pixels.shape[1])
+
+
+def _float_attr(spec: oiio.ImageSpec, *names: str) -> float | None:
+    for name in names:
+        value = spec.getattribute(name)
+        if value is None:
+            continue
+        try:
+            value = float(value[0] if isinstance(value, (tuple, list)) else value)
+        except (TypeError, ValueError):
+            continue
+        if math.isfinite(value) and value > 0:
+            return value
+    return None
+
+
+def exposure_from_spec(spec: oiio.ImageSpec) -> Exposure:
+    return Exposure(
+        exposure_time=_float_attr(spec, "ExposureTime", "Exif:ExposureTime"),
+        f_number=_float_attr(spec, "FNumber", "Exif:FNumber"),
+        iso=_float_attr(spec, "Exif:ISOSpeedRatings", "Exif:PhotographicSensitivity", "ISO"),
+    )
+
+
+def _default_space(path: Path, spec: oiio.ImageSpec, ldr_space: str) -> str:
+    tagged = spec.getattribute("oiio:ColorSpace") or spec.getattribute("colorSpace")
+    is_float = spec.format.basetype in (oiio.FLOAT, oiio.HALF, oiio.DOUBLE)
+    if tagged and isinstance(tagged, str):
+        try:
+            return colour.resolve_space(tagged)
+        except InputError:
+            pass  # an unknown tag: fall back on what the file type implies
+    return colour.DEFAULT_LINEAR_FILE_SPACE if is_float else ldr_space
+
+
+def read_image(
+    path: str | Path,
+    colour_space: str | None = None,
+    to_space: str | None = None,
+    ldr_space: str = colour.DEFAULT_INPUT_SPACE,
+    config_uri: str | None = None,
+) -> Image:
+    """Read an image as float32 RGB, EXIF orientation applied.
+
+    ``colour_space`` names what the file holds (default: its tag, else
+    ``ldr_space`` for 8/16-bit files and linear Rec.709 for float files);
+    ``to_space`` converts on the way in. Raises :class:`InputError` naming the
+    file for a missing or unreadable file and for NaN or infinite pixels.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file", path)
+    if path.is_dir():
+        raise InputError("is a folder, expected an image file", path)
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error or not buf.initialized:
+        raise InputError(f"cannot read image: {buf.geterror().strip() or 'unknown format'}", path)
+    spec = buf.spec()
+    orientation = int(spec.get_int_attribute("Orientation", 1))
+    if orientation != 1:
+        buf = oiio.ImageBufAlgo.reorient(buf)
+    pixels = buf.get_pixels(oiio.FLOAT)
+    if pixels is None or buf.has_error:
+        raise InputError(f"cannot decode pixels: {buf.geterror().strip()}", path)
+    pixels = np.asarray(pixels, dtype=np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    channels = pixels.shape[2]
+    if channels == 1 or channels == 2:
+        pixels = np.repeat(pixels[..., :1], 3, axis=2)
+    else:
+        pixels = pixels[..., :3]
+    pixels = np.ascontiguousarray(pixels)
+    bad = int(np.count_nonzero(~np.isfinite(pixels)))
+    if bad:
+        raise InputError(f"contains {bad} NaN or infinite sample(s)", path)
+    space = colour.resolve_space(colour_space, config_uri) if colour_space else (
+        _default_space(path, spec, ldr_space)
+    )
+    if to_space:
+        pixels = colour.convert(pixels, space, to_space, config_uri)
+        space = colour.resolve_space(to_space, config_uri)
+    metadata = {a.name: a.value for a in spec.extra_attribs}
+    return Image(
+        pixels=pixels,
+        colour_space=space,
+        path=path,
+        exposure=exposure_from_spec(spec),
+        bit_depth=str(spec.format),
+        metadata=metadata,
+    )
+
+
+def read_header(path: str | Path) -> oiio.ImageSpec:
+    """The image's spec (size, channels, attributes) without reading pixels."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file", path)
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise InputError(f"cannot read image: {oiio.geterror().strip()}", path)
+    try:
+        return oiio.ImageSpec(inp.spec())
+    finally:
+        inp.close()
+
+
+def write_exr(
+    path: str | Path,
+    pixels: np.ndarray,
+    colour_space: str,
+    attributes: Mapping[str, Any] | None = None,
+    half: bool | None = None,
+    compression: str = "zip",
+    config_uri: str | None = None,
+) -> Path:
+    """Write float pixels ``(H, W, C)`` as an EXR, atomically.
+
+    ``half=None`` picks half unless a value exceeds the half range (65504).
+    The file carries ``chromaticities`` (when the space has known primaries),
+    ``oiio:ColorSpace`` and ``colorSpace`` (the OCIO name), plus
+    ``attributes`` (str, int, float or float sequences).
+    """
+    path = Path(path)
+    data = np.ascontiguousarray(pixels, dtype=np.float32)
+    if data.ndim == 2:
+        data = data[..., None]
+    if not np.all(np.isfinite(data)):
+        raise ValueError(f"refusing to write NaN/Inf pixels to {path}")
+    if half is None:
+        half = float(np.max(np.abs(data), initial=0.0)) <= HALF_MAX
+    h, w, c = data.shape
+    spec = oiio.ImageSpec(w, h, c, oiio.HALF if half else oiio.FLOAT)
+    if c >= 3:
+        spec.channelnames = ("R", "G", "B", "A")[:c] if c <= 4 else spec.channelnames
+    spec.attribute("compression", compression)
+    info = colour.space_info(colour_space, config_uri)
+    spec.attribute("oiio:ColorSpace", info.name)
+    spec.attribute("colorSpace", info.name)
+    if info.chromaticities:
+        spec.attribute("chromaticities", "float[8]", tuple(info.chromaticities))
+    for key, value in (attributes or {}).items():
+        _set_attribute(spec, key, value)
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), spec):
+            raise OSError(f"cannot write {path}: {oiio.geterror()}")
+        try:
+            if not out.write_image(data):
+                raise OSError(f"cannot write {path}: {out.geterror()}")
+        finally:
+            out.close()
+        del out  # environment-map EXRs are only flushed once the output is gone
+    return path
+
+
+def _set_attribute(spec: oiio.ImageSpec, key: str, value: Any) -> None:
+    if isinstance(value, bool):
+        spec.attribute(key, int(value))
+    elif isinstance(value, (int, np.integer)):
+        spec.attribute(key, int(value))
+    elif isinstance(value, (float, np.floating)):
+        spec.attribute(key, float(value))
+    elif isinstance(value, str):
+        spec.attribute(key, value)
+    elif isinstance(value, (tuple, list, np.ndarray)):
+        values = tuple(float(v) for v in np.asarray(value).ravel())
+        spec.attribute(key, f"float[{len(values)}]", values)
+    else:
+        spec.attribute(key, str(value))
+
+
+def list_images(folder: str | Path, extensions: tuple[str, ...] = IMAGE_EXTENSIONS) -> list[Path]:
+    """Image files in ``folder`` (not recursive), sorted by name.
+
+    An empty folder, or one with no image of the given types, is an InputError.
+    """
+    folder = Path(folder)
+    if not folder.exists():
+        raise InputError("no such folder", folder)
+    if not folder.is_dir():
+        raise InputError("expected a folder of images", folder)
+    files = sorted(
+        p for p in folder.iterdir()
+        if p.is_file() and p.suffix.lower() in extensions and not p.name.startswith(".")
+    )
+    if not files:
+        kinds = ", ".join(sorted({e.lstrip(".") for e in extensions}))
+        raise InputError(f"folder holds no images ({kinds})", folder)
+    return files

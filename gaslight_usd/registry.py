@@ -1,0 +1,118 @@
+"""The converter registry: every arrow of the chain is a named converter.
+
+Built-in converters live in the ``gaslight_usd.converters`` package, one module
+per step implementation; each module exposes ``CONVERTERS`` (a list of
+:class:`Converter`). Third parties add theirs through the entry-point group
+``gaslight_usd.converters``: each entry point names a :class:`Converter`, a
+list of them, or a callable returning either. The engine imports no converter
+by name.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import pkgutil
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Any
+
+from .kinds import Kind
+
+if TYPE_CHECKING:
+    from .chain import StageContext, StageResult
+
+log = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "gaslight_usd.converters"
+BUILTIN_PACKAGE = "gaslight_usd.converters"
+
+
+@dataclass(frozen=True)
+class Converter:
+    """One step of the chain: typed inputs -> one output kind.
+
+    ``run(ctx)`` reads ``ctx.inputs``, writes ``ctx.output`` (atomically) and
+    returns a :class:`~gaslight_usd.chain.StageResult`. ``method`` groups
+    alternative implementations of one step (e.g. ``uplift``: ``bracket``,
+    ``recursive``); ``priority`` orders them when the user names none.
+    """
+
+    name: str
+    inputs: tuple[Kind, ...]
+    output: Kind
+    run: Callable[[StageContext], StageResult]
+    description: str
+    step: str
+    priority: int = 0
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+class Registry:
+    def __init__(self, converters: Iterable[Converter] = ()):
+        self._by_name: dict[str, Converter] = {}
+        for conv in converters:
+            self.add(conv)
+
+    def add(self, conv: Converter) -> None:
+        if conv.name in self._by_name:
+            raise ValueError(f"converter {conv.name!r} is registered twice")
+        self._by_name[conv.name] = conv
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._by_name
+
+    def __getitem__(self, name: str) -> Converter:
+        return self._by_name[name]
+
+    def __iter__(self):
+        return iter(sorted(self._by_name.values(), key=lambda c: (c.step, -c.priority, c.name)))
+
+    def __len__(self) -> int:
+        return len(self._by_name)
+
+    def producing(self, kind: Kind) -> list[Converter]:
+        """Converters that output ``kind``, preferred first."""
+        return sorted((c for c in self._by_name.values() if c.output == kind),
+                      key=lambda c: (-c.priority, c.name))
+
+
+def _as_converters(obj: Any) -> list[Converter]:
+    if callable(obj) and not isinstance(obj, Converter):
+        obj = obj()
+    if isinstance(obj, Converter):
+        return [obj]
+    return [c for c in obj if isinstance(c, Converter)]
+
+
+def _builtin_converters() -> list[Converter]:
+    package = importlib.import_module(BUILTIN_PACKAGE)
+    found: list[Converter] = []
+    for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{BUILTIN_PACKAGE}.{info.name}")
+        found.extend(getattr(module, "CONVERTERS", []))
+    return found
+
+
+def _plugin_converters() -> list[Converter]:
+    found: list[Converter] = []
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            found.extend(_as_converters(ep.load()))
+        except Exception as exc:  # a broken plug-in must not break the tool
+            log.warning("converter plug-in %s failed to load: %s", ep.name, exc)
+    return found
+
+
+_default: Registry | None = None
+
+
+def default_registry() -> Registry:
+    """Built-ins plus entry-point plug-ins, loaded once."""
+    global _default
+    if _default is None:
+        _default = Registry(_builtin_converters() + _plugin_converters())
+    return _default
