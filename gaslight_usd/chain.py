@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import sys
 import time
 from collections.abc import Iterable, Mapping
@@ -214,6 +215,7 @@ class ChainRun:
                              self.registry, choose):
                 if conv not in steps:
                     steps.append(conv)
+        created_out = not self.out_dir.exists()
         self.out_dir.mkdir(parents=True, exist_ok=True)
         state = self._load_state() if resume else {}
         total = len(steps)
@@ -246,7 +248,11 @@ class ChainRun:
                 record.error = str(exc) or type(exc).__name__
                 record.seconds = round(time.perf_counter() - t0, 3)
                 self.records.append(record)
-                self.write_report(status="failed")
+                if created_out and isinstance(exc, InputError) and index == 1:
+                    # Bad input caught by the first stage: leave no trace of the run.
+                    shutil.rmtree(self.out_dir, ignore_errors=True)
+                else:
+                    self.write_report(status="failed")
                 raise
             record.seconds = round(time.perf_counter() - t0, 3)
             record.status = "done"

@@ -1,0 +1,47 @@
+"""Shared fixtures: small real files written with the project's own writers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_HDRI = REPO.parent / "shared" / "data" / "hdri"
+
+
+def write_jpeg(path: Path, pixels_u8: np.ndarray, exposure_time: float | None = None,
+               f_number: float | None = None, iso: int | None = None,
+               orientation: int | None = None) -> Path:
+    """An 8-bit JPEG with the given EXIF exposure fields, via OpenImageIO."""
+    h, w, c = pixels_u8.shape
+    spec = oiio.ImageSpec(w, h, c, oiio.UINT8)
+    if exposure_time is not None:
+        spec.attribute("ExposureTime", float(exposure_time))
+    if f_number is not None:
+        spec.attribute("FNumber", float(f_number))
+    if iso is not None:
+        spec.attribute("Exif:ISOSpeedRatings", int(iso))
+    if orientation is not None:
+        spec.attribute("Orientation", int(orientation))
+    spec.attribute("Compression", "jpeg:95")
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec)
+    assert out.write_image(np.ascontiguousarray(pixels_u8))
+    out.close()
+    return path
+
+
+@pytest.fixture
+def photo_folder(tmp_path: Path) -> Path:
+    """Three textured 8-bit JPEGs a stop apart, with EXIF exposure."""
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    for i, t in enumerate([1 / 120, 1 / 60, 1 / 30]):
+        img = (rng.random((48, 64, 3)) * 200).astype(np.uint8)
+        img[:8, :8] = 255  # a clipped corner
+        write_jpeg(folder / f"shot_{i}.jpg", img, exposure_time=t, f_number=4.0, iso=100)
+    return folder
