@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +13,9 @@ from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import write_ply
 from gaslight_usd.splats import SplatScene
 
-CLI = [sys.executable, "-m", "gaslight_usd.cli.main"]
+# The installed console script (not `python -m`, which would import the source tree
+# from the working directory instead of the installed package).
+CLI = [str(Path(sys.executable).with_name("gaslight2usd"))]
 
 
 def run_cli(*args):
