@@ -24,7 +24,7 @@ from typing import Any
 
 from . import colour
 from .atomic import write_text
-from .errors import GaslightError, InputError
+from .errors import InputError, NotBuiltYet, UsageError
 from .kinds import Artifact, Kind
 from .progress import Progress
 from .provenance import tool_version, versions
@@ -134,8 +134,10 @@ def plan(available: Iterable[Kind], target: Kind, registry: Registry,
     result = solve(target, frozenset())
     if result is None:
         given = ", ".join(sorted(k.value for k in have)) or "nothing"
-        makers = ", ".join(c.name for c in registry.producing(target)) or "none is installed"
-        raise GaslightError(
+        makers = ", ".join(c.name for c in registry.producing(target))
+        if not makers:
+            raise NotBuiltYet(f"no converter makes {target.value} yet (none is installed)")
+        raise UsageError(
             f"no converter chain makes {target.value} from {given} "
             f"(converters that make {target.value}: {makers})")
     return result

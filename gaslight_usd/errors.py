@@ -42,6 +42,12 @@ class InputError(GaslightError):
     exit_code = EXIT_BAD_INPUT
 
 
+class UsageError(GaslightError):
+    """The request cannot be met as asked (e.g. no converter chain links input to output)."""
+
+    exit_code = EXIT_USAGE
+
+
 class NotBuiltYet(GaslightError):
     """A subcommand or method that the project has not built yet."""
 

@@ -5,7 +5,7 @@ import pytest
 
 from gaslight_usd import registry as registry_mod
 from gaslight_usd.chain import ChainRun, Settings, StageResult, plan
-from gaslight_usd.errors import GaslightError
+from gaslight_usd.errors import GaslightError, NotBuiltYet
 from gaslight_usd.imageio import read_image, write_exr
 from gaslight_usd.kinds import Artifact, Kind, detect_kind
 from gaslight_usd.progress import Progress
@@ -42,7 +42,7 @@ def test_plan_finds_the_shortest_chain_and_respects_choices():
     assert [s.name for s in plan({Kind.HDR_VIEWS}, Kind.HDRI, reg)] == ["test.mean"]
     with pytest.raises(GaslightError, match="no converter chain makes hdri"):
         plan({Kind.LDR_VIEWS}, Kind.HDRI, reg, choose={"uplift": "uplift.nonexistent"})
-    with pytest.raises(GaslightError, match="no converter chain makes usd"):
+    with pytest.raises(NotBuiltYet, match="no converter makes usd"):
         plan({Kind.LDR_VIEWS}, Kind.USD, Registry([MEAN]))
 
 

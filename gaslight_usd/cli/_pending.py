@@ -8,7 +8,7 @@ from ..errors import NotBuiltYet
 from ._common import add_common
 
 PENDING = {
-    "run": "the whole chain: photos -> HDR -> poses -> splats -> USD/EXR/PLY",
+
     "poses": "camera poses by structure from motion (pycolmap) or imported",
     "fit": "fit HDR Gaussian splats to posed HDR views",
     "export": "export splats as OpenUSD (ParticleField, instancer, UsdLux rig)",

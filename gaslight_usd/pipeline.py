@@ -1,0 +1,60 @@
+"""The whole chain as one call: what ``gaslight2usd run`` and ``batch`` use.
+
+Options are grouped by step name (``uplift``, ``poses``, ``fit``, ``export``,
+``hdri``) and passed to whichever converter runs that step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .chain import ChainRun, Settings
+from .kinds import Artifact, Kind, detect_kind
+from .progress import Progress
+from .registry import Registry, default_registry
+
+DEFAULT_TARGETS = (Kind.SPLATS, Kind.USD, Kind.HDRI)
+
+
+@dataclass
+class Job:
+    """One scene to process: its inputs, what to make, and the step options."""
+
+    inputs: list[Path]
+    out_dir: Path
+    targets: tuple[Kind, ...] = DEFAULT_TARGETS
+    choose: dict[str, str] = field(default_factory=dict)
+    options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    settings: dict[str, Any] = field(default_factory=dict)
+    resume: bool = True
+
+
+def artifacts_from_paths(paths: list[Path]) -> list[Artifact]:
+    """Tell what each input path holds; two inputs of one kind is an error."""
+    from .errors import InputError
+
+    found: dict[Kind, Artifact] = {}
+    for path in paths:
+        kind = detect_kind(path)
+        if kind in found:
+            raise InputError(f"two inputs hold {kind.value} (also {found[kind].path})", path)
+        found[kind] = Artifact(kind, Path(path))
+    return list(found.values())
+
+
+def run_job(job: Job, registry: Registry | None = None, progress: Progress | None = None,
+            command: list[str] | None = None) -> dict[Kind, Artifact]:
+    settings = Settings.resolved(**job.settings)
+    runner = ChainRun(job.out_dir, settings, registry or default_registry(),
+                      progress or Progress(), command)
+    return runner.run(artifacts_from_paths(job.inputs), job.targets, choose=job.choose,
+                      options=job.options, resume=job.resume)
+
+
+def step_options(pairs: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Drop unset (None) values so converters see only what the user gave."""
+    return {step: {k: v for k, v in opts.items() if v is not None}
+            for step, opts in pairs.items()}
