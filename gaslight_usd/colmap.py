@@ -185,21 +185,21 @@ def read_model(path: str | Path) -> ColmapModel:
     for part in ("cameras", "images"):
         if not files[part].exists():
             raise InputError(f"COLMAP model lacks {part}.{ext}", folder)
-    try:
-        if binary:
-            intr = _read_cameras_bin(files["cameras"])
-            images = _read_images_bin(files["images"])
-            pts = (_read_points3d_bin(files["points3D"]) if files["points3D"].exists()
-                   else _empty_points())
-        else:
-            intr = _read_cameras_txt(files["cameras"])
-            images = _read_images_txt(files["images"])
-            pts = (_read_points3d_txt(files["points3D"]) if files["points3D"].exists()
-                   else _empty_points())
-    except InputError:
-        raise
-    except (ValueError, IndexError, KeyError, struct.error, UnicodeDecodeError) as exc:
-        raise InputError(f"malformed COLMAP model: {exc}", folder) from exc
+    readers = ({"cameras": _read_cameras_bin, "images": _read_images_bin,
+                "points3D": _read_points3d_bin} if binary else
+               {"cameras": _read_cameras_txt, "images": _read_images_txt,
+                "points3D": _read_points3d_txt})
+    parts: dict[str, Any] = {"points3D": _empty_points()}
+    for part, reader in readers.items():
+        if not files[part].exists():
+            continue
+        try:
+            parts[part] = reader(files[part])
+        except InputError:
+            raise
+        except (ValueError, IndexError, KeyError, struct.error, UnicodeDecodeError) as exc:
+            raise InputError(f"malformed COLMAP {part} file: {exc}", files[part]) from exc
+    intr, images, pts = parts["cameras"], parts["images"], parts["points3D"]
     return _assemble(folder, intr, images, pts)
 
 
@@ -385,20 +385,35 @@ def _read_points3d_bin(path: Path) -> dict:
 # -- writing -----------------------------------------------------------------
 
 def write_model(folder: str | Path, model: ColmapModel, binary: bool = False) -> Path:
-    """Write ``model`` as a standard COLMAP model into ``folder`` (created).
+    """Write ``model`` as a standard COLMAP model into ``folder``.
 
-    Each file is written atomically. Files of the other format (and COLMAP
-    4's rigs/frames files, which would disagree with the new poses) are
-    removed so readers never mix two models. ``frame.json`` is written when
+    A new folder is filled under a temporary name and renamed into place; in
+    an existing folder each file is replaced atomically, ``cameras`` last (the
+    file readers look for). Files of the other format (and COLMAP 4's
+    rigs/frames files, which would disagree with the new poses) are removed so
+    readers never mix two models. ``frame.json`` is written when
     ``model.frame`` is not empty.
     """
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    if not folder.exists():
+        with atomic_path(folder) as tmp:
+            tmp.mkdir()
+            _write_files(tmp, model, binary)
+        return folder
+    _write_files(folder, model, binary)
+    return folder
+
+
+def _write_files(folder: Path, model: ColmapModel, binary: bool) -> None:
     ext = "bin" if binary else "txt"
     qs = matrix_to_quaternion(np.array([c.R for c in model.cameras]).reshape(-1, 3, 3))
-    writers = {"cameras": _write_cameras_bin if binary else _write_cameras_txt,
+    if model.frame:
+        write_text(folder / FRAME_FILE, json.dumps(model.frame, indent=2, default=float))
+    else:
+        (folder / FRAME_FILE).unlink(missing_ok=True)
+    writers = {"points3D": _write_points3d_bin if binary else _write_points3d_txt,
                "images": _write_images_bin if binary else _write_images_txt,
-               "points3D": _write_points3d_bin if binary else _write_points3d_txt}
+               "cameras": _write_cameras_bin if binary else _write_cameras_txt}
     for part, writer in writers.items():
         with atomic_path(folder / f"{part}.{ext}") as tmp:
             writer(tmp, model, qs)
@@ -407,9 +422,6 @@ def write_model(folder: str | Path, model: ColmapModel, binary: bool = False) ->
         (folder / f"{part}.{other}").unlink(missing_ok=True)
         if part in ("rigs", "frames"):
             (folder / f"{part}.{ext}").unlink(missing_ok=True)
-    if model.frame:
-        write_text(folder / FRAME_FILE, json.dumps(model.frame, indent=2, default=float))
-    return folder
 
 
 def _fmt(values: np.ndarray) -> str:

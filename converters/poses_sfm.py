@@ -1,0 +1,61 @@
+"""LDR photos -> camera poses and sparse points by structure from motion (pycolmap).
+
+Options (the ``poses`` step's options in a chain run; all optional):
+``matcher`` (exhaustive | sequential), ``camera_model``, ``single_camera``,
+``min_registered`` (share, default 0.5), ``panorama`` (auto | on | off),
+``scale`` (metres per SfM unit) or ``scale_from`` ("IMG_A,IMG_B,METRES"),
+``binary`` (write .bin instead of .txt), ``max_image_size``, ``verbose``.
+The model is moved to the project's SfM frame (+Y up, origin at the scene
+centre; see gaslight_usd.frame) and written with its ``frame.json``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+
+from gaslight_usd.chain import StageContext, StageResult
+from gaslight_usd.colmap import write_model
+from gaslight_usd.frame import sfm_frame
+from gaslight_usd.kinds import Kind
+from gaslight_usd.registry import Converter
+from gaslight_usd.sfm import SfmOptions, solve_poses
+
+_SFM_KEYS = {f.name for f in fields(SfmOptions)}
+
+
+def solve(ctx: StageContext) -> StageResult:
+    opts = ctx.options
+    sfm_opts = SfmOptions(**{k: v for k, v in opts.items() if k in _SFM_KEYS and v is not None})
+    if "seed" not in opts:
+        sfm_opts.seed = ctx.settings.seed
+    result = solve_poses(ctx.input(Kind.LDR_VIEWS).path, sfm_opts, ctx.progress)
+    for warning in result.warnings:
+        ctx.progress.message(f"warning: {warning}")
+    model = sfm_frame(result.model, scale=opts.get("scale"), scale_from=opts.get("scale_from"))
+    model.frame["sfm"] = {"matcher": sfm_opts.matcher, "camera_model": sfm_opts.camera_model,
+                          "registered": len(result.registered), "photos": len(result.photos),
+                          "unregistered": result.unregistered}
+    write_model(ctx.output, model, binary=bool(opts.get("binary", False)))
+    errors = model.point_errors
+    return StageResult(
+        metadata={"frame": {k: v for k, v in model.frame.items() if k != "sfm"},
+                  "unregistered": result.unregistered, "notes": model.notes},
+        counts={"photos": len(result.photos), "registered": len(result.registered),
+                "images": len(model.cameras), "points": len(model.points)},
+        metrics={"seconds_sfm": round(result.seconds, 3),
+                 "mean_reprojection_error_px": float(errors.mean()) if len(errors) else None,
+                 **result.stats},
+    )
+
+
+CONVERTERS = [
+    Converter(
+        name="poses.sfm",
+        step="poses",
+        inputs=(Kind.LDR_VIEWS,),
+        output=Kind.POSES,
+        run=solve,
+        description="solve camera poses and sparse points from the photos (pycolmap SfM: "
+                    "SIFT, matching, incremental mapping)",
+    ),
+]

@@ -1,0 +1,246 @@
+"""Frames, alignment, HDR point colours, panoramas, and SfM on real photos."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+from gaslight_usd.cameras import PinholeCamera, direction_to_latlong, quaternion_to_matrix
+from gaslight_usd.colmap import ColmapModel, read_model
+from gaslight_usd.errors import InputError
+from gaslight_usd.frame import (
+    align_and_compare,
+    camera_axes,
+    parse_scale_from,
+    sfm_frame,
+    transform_model,
+    umeyama,
+)
+from gaslight_usd.panorama import FACES, cube_faces, face_camera, is_latlong
+from gaslight_usd.poses import colour_points, read_poses
+from gaslight_usd.sfm import SfmOptions, solve_poses, triangulate_known_poses
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "room"
+HDRI = ROOT.parent / "shared" / "data" / "hdri"
+needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
+                                   reason="examples/room not rendered")
+
+
+def look_at(centre, target, up=(0, 1, 0), name="") -> PinholeCamera:
+    """A COLMAP camera at ``centre`` looking at ``target`` with world ``up`` up."""
+    z = np.asarray(target, float) - centre
+    z /= np.linalg.norm(z)
+    x = np.cross(z, -np.asarray(up, float))
+    x /= np.linalg.norm(x)
+    rot = np.stack([x, np.cross(z, x), z])
+    return PinholeCamera(64, 48, 50.0, 50.0, 32.0, 24.0, R=rot, t=-rot @ centre, name=name)
+
+
+def ring_model(seed: int = 0) -> ColmapModel:
+    """8 cameras on a ring round a point cloud, +Y up, then moved by a random similarity."""
+    rng = np.random.default_rng(seed)
+    cams = [look_at(np.array([3 * np.cos(a), 1.5, 3 * np.sin(a)]), np.zeros(3),
+                    name=f"v{i}.jpg") for i, a in enumerate(np.linspace(0, 6, 8))]
+    points = rng.normal(size=(200, 3)) * 0.5 + [0.2, 1.0, -0.1]
+    model = ColmapModel(cameras=cams, points=points)
+    rot = quaternion_to_matrix(rng.normal(size=4))
+    return transform_model(model, 0.37, rot, rng.normal(size=3))
+
+
+def test_umeyama_recovers_a_similarity():
+    rng = np.random.default_rng(1)
+    src = rng.normal(size=(20, 3))
+    rot = quaternion_to_matrix(rng.normal(size=4))
+    s, r, t = umeyama(src, 2.5 * src @ rot.T + [1, -2, 3])
+    assert s == pytest.approx(2.5) and np.allclose(r, rot) and np.allclose(t, [1, -2, 3])
+
+
+def test_sfm_frame_puts_y_up_and_centre_at_origin():
+    tilted = ring_model()
+    ups, _ = camera_axes(tilted.cameras)
+    assert np.mean(ups, 0)[1] / np.linalg.norm(np.mean(ups, 0)) < 0.99  # really tilted
+    framed = sfm_frame(tilted)
+    ups, fwds = camera_axes(framed.cameras)
+    up = ups.mean(0) / np.linalg.norm(ups.mean(0))
+    np.testing.assert_allclose(up, [0, 1, 0], atol=1e-9)
+    np.testing.assert_allclose(np.median(framed.points, 0), 0, atol=1e-9)
+    heading = fwds.mean(0) * [1, 0, 1]
+    np.testing.assert_allclose(heading / np.linalg.norm(heading), [0, 0, -1], atol=1e-9)
+    # the same photos: every point lands on the same pixel in every camera
+    for a, b in zip(tilted.cameras, framed.cameras, strict=True):
+        np.testing.assert_allclose(a.project(tilted.points)[0], b.project(framed.points)[0],
+                                   atol=1e-8)
+    f = framed.frame
+    assert f["up_axis"] == "Y" and f["meters_per_unit"] is None and not f["scale_known"]
+    m = np.array(f["transform_from_sfm"])
+    np.testing.assert_allclose(tilted.points @ m[:3, :3].T + m[:3, 3], framed.points, atol=1e-9)
+
+
+def test_scale_from_two_cameras_gives_metres():
+    framed = sfm_frame(ring_model(), scale_from="v0.jpg,v4.jpg,2.0")
+    gap = np.linalg.norm(framed.camera("v0.jpg").center - framed.camera("v4.jpg").center)
+    assert gap == pytest.approx(2.0)
+    assert framed.frame["meters_per_unit"] == 1.0 and framed.frame["scale_known"]
+    assert sfm_frame(ring_model(), scale=3.0).frame["scale_source"].startswith("factor 3")
+    with pytest.raises(InputError, match="nope.jpg"):
+        sfm_frame(ring_model(), scale_from="v0.jpg,nope.jpg,1")
+    with pytest.raises(InputError, match="IMG_A,IMG_B"):
+        parse_scale_from("a,b")
+
+
+def test_align_and_compare_is_zero_for_a_moved_copy():
+    truth = ring_model(2)
+    report = align_and_compare(sfm_frame(truth, scale=0.1), truth)
+    assert report["median_centre_error_rel"] < 1e-9
+    assert report["median_rotation_error_deg"] < 1e-5 and report["missing"] == []
+
+
+def test_colour_points_median_over_seeing_views():
+    """Views of constant colours 1, 2, 3 (and a gradient view): medians are hand-computed."""
+    cams = [look_at(np.array([0.0, 0, -5 + 0.1 * i]), np.zeros(3), name=f"v{i}.exr")
+            for i in range(3)]
+    pts = np.array([[0.0, 0, 0], [0.1, -0.1, 0], [0, 0, -10]])  # the last is behind all
+    model = ColmapModel(cameras=cams, points=pts)
+    views = {f"v{i}": np.full((48, 64, 3), i + 1.0, np.float32) for i in range(3)}
+    views["v2"][..., 0] = np.arange(64, dtype=np.float32)[None, :] * 100  # red = 100 * x
+    colours = colour_points(model, views)
+    uv, _ = cams[2].project(pts[:1])
+    # point 0: views give red 1, 2 and 100*(u-0.5) (bilinear on pixel centres) -> median 2
+    assert colours[0].tolist() == pytest.approx([2.0, 2.0, 2.0])
+    assert 100 * (uv[0, 0] - 0.5) > 2
+    # the unseen point takes the median of the seen ones
+    assert colours[2].tolist() == pytest.approx(np.median(colours[:2], 0).tolist())
+    # with tracks, only the views in the track count: point 0 seen by v2 alone
+    model.tracks = [np.array([[3, 0]]), np.array([[1, 0], [2, 0]]), np.zeros((0, 2), int)]
+    colours = colour_points(model, views)
+    assert colours[0, 0] == pytest.approx(100 * (uv[0, 0] - 0.5), rel=1e-5)
+    assert colours[1].tolist() == pytest.approx([1.5, 1.5, 1.5])
+
+
+def test_cube_faces_sample_the_right_directions():
+    w, h = 256, 128
+    pano = np.zeros((h, w, 3), np.float32)
+    pano[..., 0] = np.arange(w)[None, :]  # red = column
+    pano[..., 1] = np.arange(h)[:, None]  # green = row
+    faces = cube_faces(pano, size=32)
+    assert set(faces) == set(FACES) and faces["front"].shape == (32, 32, 3)
+    for face, img in faces.items():
+        cam = face_camera(face, 32)
+        d = cam.ray_directions()[16, 16]  # rig (front camera) axes: x right, y down, z fwd
+        d_pano = np.array([-d[0], -d[1], d[2]])  # panorama axes: +Y up, +Z centre column
+        x, y = direction_to_latlong(d_pano, w, h)
+        if face not in ("up", "down"):
+            assert img[16, 16, 0] == pytest.approx(x - 0.5, abs=0.6), face
+        assert img[16, 16, 1] == pytest.approx(np.clip(y - 0.5, 0, h - 1), abs=0.6), face
+    # front looks at the centre column, right at three quarters of the width
+    assert faces["front"][16, 16, 0] == pytest.approx(w / 2, abs=1)
+    assert faces["right"][16, 16, 0] == pytest.approx(3 * w / 4, abs=1)
+    assert is_latlong(1024, 512) and not is_latlong(480, 360)
+
+
+def _write_jpeg(path: Path, pixels: np.ndarray) -> None:
+    enc = np.clip(pixels, 0, 1) ** (1 / 2.2)
+    buf = oiio.ImageBuf((enc * 255 + 0.5).astype(np.uint8))
+    assert buf.write(str(path))
+
+
+@pytest.fixture(scope="module")
+def unrelated(tmp_path_factory):
+    """Five photos of nothing in common: four crops of different HDRIs, one noise."""
+    folder = tmp_path_factory.mktemp("unrelated")
+    for name in ("city", "forest", "interior", "sunset"):
+        buf = oiio.ImageBuf(str(HDRI / f"{name}.exr"))
+        px = np.asarray(buf.get_pixels(oiio.FLOAT))[150:390, 300:620, :3]
+        _write_jpeg(folder / f"{name}.jpg", px / (4 * np.median(px) + 1e-6))
+    rng = np.random.default_rng(0)
+    _write_jpeg(folder / "noise.jpg", rng.random((240, 320, 3)))
+    return folder
+
+
+def test_unrelated_photos_fail_naming_them(unrelated):
+    with pytest.raises(InputError) as err:
+        solve_poses(unrelated, SfmOptions(max_image_size=400))
+    msg = str(err.value)
+    assert "0 of 5 photos registered" in msg
+    for name in ("city.jpg", "forest.jpg", "interior.jpg", "sunset.jpg", "noise.jpg"):
+        assert name in msg
+    assert "no overlap" in msg
+
+
+@needs_example
+@pytest.mark.slow
+def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
+    """The bundled photos plus one unrelated photo: all 14 register, the stray is named."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for p in sorted((EXAMPLE / "photos").glob("*.jpg")):
+        (photos / p.name).symlink_to(p)
+    rng = np.random.default_rng(1)
+    _write_jpeg(photos / "zz_stray.jpg", rng.random((360, 480, 3)))
+    out = tmp_path / "sparse"
+    proc = subprocess.run(
+        [sys.executable, "-m", "gaslight_usd.cli.main", "poses", str(photos), "-o", str(out),
+         "--camera-model", "PINHOLE", "--json", "-q"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    truth = read_poses(EXAMPLE / "sparse" / "0")
+    assert report["registered"] == len(truth.cameras) == report["photos"] - 1
+    assert list(report["unregistered"]) == ["zz_stray.jpg"]
+    model = read_model(out)
+    assert model.frame["up_axis"] == "Y" and model.frame["frame_source"] == "sfm"
+    scene = json.loads((EXAMPLE / "scene.json").read_text())
+    size = float(np.linalg.norm(np.subtract(scene["room"]["max"], scene["room"]["min"])))
+    cmp = align_and_compare(model, truth, scene_size=size)
+    assert cmp["missing"] == []
+    assert cmp["median_centre_error_rel"] < 0.01
+    assert cmp["median_rotation_error_deg"] < 1.0
+    # +Y up: the SfM frame's up agrees with the true (+Y up) frame after alignment
+    rot = cmp["similarity"][:3, :3] / np.cbrt(np.linalg.det(cmp["similarity"][:3, :3]))
+    assert rot[1, 1] > 0.99
+
+
+@needs_example
+@pytest.mark.slow
+def test_triangulate_known_poses_on_the_example():
+    truth = read_poses(EXAMPLE / "sparse" / "0")
+    assert len(truth.points) == 0
+    filled = triangulate_known_poses(EXAMPLE / "photos", truth, SfmOptions(max_image_size=480))
+    assert len(filled.points) > 200
+    for a, b in zip(filled.cameras, truth.cameras, strict=True):
+        assert np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t)
+    scene = json.loads((EXAMPLE / "scene.json").read_text())
+    lo, hi = np.array(scene["room"]["min"]), np.array(scene["room"]["max"])
+    inside = np.all((filled.points > lo - 0.05) & (filled.points < hi + 0.05), axis=1)
+    assert inside.mean() > 0.95  # true poses -> points on the room's surfaces
+    assert np.median(filled.point_errors) < 1.5
+
+
+def test_cli_converts_colmap_to_transforms_and_back(tmp_path):
+    model = ring_model(4)
+    from gaslight_usd.colmap import write_model
+    write_model(tmp_path / "sparse" / "0", model, binary=True)
+    cli = [sys.executable, "-m", "gaslight_usd.cli.main", "poses"]
+    proc = subprocess.run(cli + ["--from", str(tmp_path / "sparse"), "-o",
+                                 str(tmp_path / "t" / "transforms.json"), "--json"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["images"] == 8
+    proc = subprocess.run(cli + ["--from", str(tmp_path / "t" / "transforms.json"), "-o",
+                                 str(tmp_path / "back")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    back = read_model(tmp_path / "back")
+    for a, b in zip(model.cameras, back.cameras, strict=True):
+        np.testing.assert_allclose(b.R, a.R, atol=1e-9)
+        np.testing.assert_allclose(b.t, a.t, atol=1e-9)
+    np.testing.assert_allclose(back.points, model.points, atol=1e-9)
+    assert back.frame["frame_source"] == "given (colmap)"  # carried through the .json
+    proc = subprocess.run(cli + ["--from", str(tmp_path / "nothing"), "-o", str(tmp_path / "x")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 3 and "nothing" in proc.stderr
