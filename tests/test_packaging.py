@@ -15,3 +15,14 @@ def test_no_bare_top_level_modules():
 
 def test_converters_install_inside_the_package():
     assert files("gaslight_usd.converters").joinpath("uplift_linear.py").is_file()
+
+
+def test_every_subpackage_is_installed():
+    """pyproject lists packages explicitly: a new subpackage must be added there."""
+    import importlib.util
+    from pathlib import Path
+
+    source = Path(__file__).resolve().parents[1] / "gaslight_usd"
+    for init in source.glob("*/__init__.py"):
+        name = f"gaslight_usd.{init.parent.name}"
+        assert importlib.util.find_spec(name) is not None, f"{name} is not installed"
