@@ -224,6 +224,7 @@ class ChainRun:
         for index, conv in enumerate(steps, start=1):
             stage_options = dict((options or {}).get(conv.step, {}))
             inputs = {k: artifacts[k] for k in conv.inputs}
+            conv = self._applicable(conv, inputs, explicit=conv.step in (choose or {}))
             out_path = Path((outputs or {}).get(conv.output) or
                             self.out_dir / conv.output.default_name)
             key = fingerprint(conv, inputs, stage_options, self.settings)
@@ -268,6 +269,20 @@ class ChainRun:
             self.progress.message(f"[{label}] done in {record.seconds:.1f} s")
         self.write_report(status="done")
         return artifacts
+
+    def _applicable(self, conv: Converter, inputs: dict[Kind, Artifact],
+                    explicit: bool) -> Converter:
+        """``conv``, or the next converter of its step that accepts these inputs."""
+        reason = conv.refusal(inputs)
+        if reason is None:
+            return conv
+        if explicit:
+            raise UsageError(f"{conv.name} cannot run on these inputs: {reason}")
+        for alt in self.registry.alternatives(conv):
+            if alt is not conv and alt.priority <= conv.priority and alt.refusal(inputs) is None:
+                self.progress.message(f"{conv.name} does not apply ({reason}); using {alt.name}")
+                return alt
+        raise UsageError(f"no {conv.step} converter applies: {conv.name}: {reason}")
 
     def report(self, status: str) -> dict[str, Any]:
         return {

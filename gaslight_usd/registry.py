@@ -47,6 +47,14 @@ class Converter:
     step: str
     priority: int = 0
     options: dict[str, Any] = field(default_factory=dict)
+    accepts: Callable[[dict[Kind, Any]], str | None] | None = None
+    """Optional check of the actual inputs before running: ``None`` when this
+    converter applies, else the reason it does not (e.g. "no brackets"). When
+    the user named no converter for the step, the runner then falls back to
+    the next one for the same step."""
+
+    def refusal(self, inputs: dict[Kind, Any]) -> str | None:
+        return self.accepts(inputs) if self.accepts else None
 
 
 class Registry:
@@ -71,6 +79,11 @@ class Registry:
 
     def __len__(self) -> int:
         return len(self._by_name)
+
+    def alternatives(self, conv: Converter) -> list[Converter]:
+        """Converters of the same step, inputs and output as ``conv``, preferred first."""
+        return [c for c in self.producing(conv.output)
+                if c.step == conv.step and set(c.inputs) == set(conv.inputs)]
 
     def producing(self, kind: Kind) -> list[Converter]:
         """Converters that output ``kind``, preferred first."""

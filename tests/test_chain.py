@@ -5,7 +5,7 @@ import pytest
 
 from gaslight_usd import registry as registry_mod
 from gaslight_usd.chain import ChainRun, Settings, StageResult, plan
-from gaslight_usd.errors import GaslightError, NotBuiltYet
+from gaslight_usd.errors import GaslightError, NotBuiltYet, UsageError
 from gaslight_usd.imageio import read_image, write_exr
 from gaslight_usd.kinds import Artifact, Kind, detect_kind
 from gaslight_usd.progress import Progress
@@ -28,7 +28,8 @@ MEAN = Converter(name="test.mean", step="hdri", inputs=(Kind.HDR_VIEWS,), output
 
 
 def registry_with_mean() -> Registry:
-    return Registry([*default_registry(), MEAN])
+    """The linear uplift and the mean converter only: independent of other plug-ins."""
+    return Registry([default_registry()["uplift.linear"], MEAN])
 
 
 def test_builtins_are_discovered():
@@ -84,10 +85,10 @@ def test_failure_is_reported_and_the_rerun_resumes_after_done_stages(photo_folde
 
 def test_changed_input_invalidates_the_resume(photo_folder, tmp_path):
     out = tmp_path / "run"
-    ChainRun(out, Settings.resolved(), progress=Progress(quiet=True)).run(
+    ChainRun(out, Settings.resolved(), registry_with_mean(), Progress(quiet=True)).run(
         [Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDR_VIEWS])
     (photo_folder / "shot_0.jpg").unlink()
-    rerun = ChainRun(out, Settings.resolved(), progress=Progress(quiet=True))
+    rerun = ChainRun(out, Settings.resolved(), registry_with_mean(), Progress(quiet=True))
     rerun.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDR_VIEWS])
     assert [r.status for r in rerun.records] == ["done"]
 
@@ -95,13 +96,27 @@ def test_changed_input_invalidates_the_resume(photo_folder, tmp_path):
 def test_linear_uplift_normalises_exif_exposure(photo_folder, tmp_path):
     """Three photos a stop apart: relative radiance = linear / 2**(ev - median ev)."""
     out = tmp_path / "run"
-    ChainRun(out, Settings.resolved(working_space="lin_rec709"),
-             progress=Progress(quiet=True)).run(
+    ChainRun(out, Settings.resolved(working_space="lin_rec709"), registry_with_mean(),
+             Progress(quiet=True)).run(
         [Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDR_VIEWS])
     first = read_image(out / "hdr" / "shot_0.exr")
     assert first.metadata["gaslight:exposure_ratio"] == pytest.approx(0.5, rel=1e-3)
     source = read_image(photo_folder / "shot_0.jpg", to_space="lin_rec709").pixels
     np.testing.assert_allclose(first.pixels, source / 0.5, rtol=2e-3, atol=1e-4)
+
+
+def test_a_refusing_converter_falls_back_to_the_next(photo_folder, tmp_path):
+    picky = Converter(name="test.picky", step="uplift", inputs=(Kind.LDR_VIEWS,),
+                      output=Kind.HDR_VIEWS, run=mean_panorama, description="never applies",
+                      priority=50, accepts=lambda inputs: "no brackets in these photos")
+    reg = Registry([picky, *registry_with_mean()])
+    run = ChainRun(tmp_path / "run", Settings.resolved(), reg, Progress(quiet=True))
+    run.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDR_VIEWS])
+    assert [r.converter for r in run.records] == ["uplift.linear"]
+    explicit = ChainRun(tmp_path / "run2", Settings.resolved(), reg, Progress(quiet=True))
+    with pytest.raises(UsageError, match="no brackets"):
+        explicit.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDR_VIEWS],
+                     choose={"uplift": "test.picky"})
 
 
 def test_detect_kind(photo_folder, tmp_path):
