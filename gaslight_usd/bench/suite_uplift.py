@@ -1,0 +1,203 @@
+"""Suite "uplift": single-photo LDR -> HDR methods on real-HDR reference pairs.
+
+Cases are :mod:`~gaslight_usd.evaluation.reference` pairs cut from the
+shared CC0 panoramas (200 in the full run, 8 with ``quick``; ``count``
+overrides). Per case and method:
+
+- ``sec_per_mp``: wall time of the method's call per megapixel of photo;
+- ``relight_mse`` / ``relight_psnr`` / ``relight_angle_deg``: the relighting
+  protocol (:mod:`~gaslight_usd.evaluation.relight`) at a reduced render size
+  for speed (stated in the notes and in every row);
+- ``pu21_psnr``, ``log_lum_rmse_stops``, ``relative_l1``: HDR errors after
+  exposure alignment on truth pixels in [0.2, 0.8];
+- ``light_power_err_stops`` / ``light_peak_err_stops``: light-source errors
+  (after the same alignment, pixels weighted by solid angle), only on cases
+  whose light truth is trustworthy and whose brightest region is clipped in
+  the photo; NaN elsewhere (left out of medians).
+
+Built-in methods: ``ldr-baseline`` (the photo through the inverse camera
+curve, no uplift) and ``oracle`` (the truth itself: the ceiling). Other
+modules add theirs with :func:`register_uplift_method`; the suite imports
+the optional module ``gaslight_usd.uplift.bench_methods`` and the entry
+points of group ``gaslight_usd.bench_uplift`` (each a callable taking
+``register_uplift_method``) before it runs, so methods living there join
+without this file changing. A plug-in that fails to load is reported as a
+row-less warning on stderr, never fatal.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from ..evaluation import curves
+from ..evaluation.metrics import hdr_errors, light_source_errors
+from ..evaluation.reference import ReferencePair, make_pair, shared_sources
+from ..evaluation.relight import RelightRenderer, compare_renders
+
+NAME = "uplift"
+DESCRIPTION = "LDR -> HDR uplift on real-HDR reference pairs (relighting, PU21, light power)"
+X = ("sec_per_mp", "uplift time (seconds per megapixel)")
+Y = ("relight_psnr", "relight PSNR (dB)")
+HIGHER_IS_BETTER = True
+REFERENCES = ("oracle",)
+TABLE = ("sec_per_mp", "relight_psnr", "relight_mse", "relight_angle_deg", "pu21_psnr",
+         "log_lum_rmse_stops", "light_power_err_stops")
+
+FULL_COUNT = 200
+QUICK_COUNT = 8
+SIZES = {"quick": {"photo": (128, 96), "render": 64, "spp": 8, "env": 128},
+         "full": {"photo": (256, 192), "render": 128, "spp": 16, "env": 256}}
+
+UpliftFn = Callable[[np.ndarray, str], np.ndarray]
+_METHODS: dict[str, Callable[[ReferencePair], np.ndarray]] = {}
+
+
+def register_uplift_method(name: str, fn: UpliftFn) -> None:
+    """Add a method to the suite: ``fn(ldr_encoded, curve) -> HDR``.
+
+    ``ldr_encoded`` is ``(H, W, 3)`` float in [0, 1] (8-bit levels) encoded
+    with ``curve`` (one of ``srgb``, ``gamma2.2``, ``filmic``; see
+    :mod:`~gaslight_usd.evaluation.curves`); the result is ``(H, W, 3)``
+    linear HDR in the baseline's scale (1.0 = the photo's white). Registering
+    a name again replaces it.
+    """
+    _METHODS[name] = lambda pair: fn(pair.ldr, pair.curve)
+
+
+def ldr_baseline(ldr_encoded: np.ndarray, curve: str) -> np.ndarray:
+    """No uplift: the photo linearised through its inverse camera curve."""
+    return curves.decode(ldr_encoded, curve)
+
+
+register_uplift_method("ldr-baseline", ldr_baseline)
+_METHODS["oracle"] = lambda pair: pair.truth
+
+
+PLUGIN_MODULE = "gaslight_usd.uplift.bench_methods"
+ENTRY_POINT_GROUP = "gaslight_usd.bench_uplift"
+
+
+def load_plugins() -> None:
+    """Import the optional plug-in module and entry points that register methods."""
+    try:
+        importlib.import_module(PLUGIN_MODULE)
+    except ModuleNotFoundError as exc:
+        if exc.name not in (PLUGIN_MODULE, PLUGIN_MODULE.rpartition(".")[0]):
+            print(f"bench uplift: cannot load {PLUGIN_MODULE}: {exc}", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - a broken plug-in must not stop the bench
+        print(f"bench uplift: cannot load {PLUGIN_MODULE}: {exc}", file=sys.stderr)
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            ep.load()(register_uplift_method)
+        except Exception as exc:  # noqa: BLE001
+            print(f"bench uplift: entry point {ep.name} failed: {exc}", file=sys.stderr)
+
+
+def methods() -> list[str]:
+    """Names of the registered methods (plug-ins loaded first)."""
+    load_plugins()
+    return list(_METHODS)
+
+
+def _sizes(options: dict[str, Any]) -> dict[str, Any]:
+    return SIZES["quick" if options.get("quick") else "full"]
+
+
+def notes(options: dict[str, Any]) -> list[str]:
+    s = _sizes(options)
+    count = options.get("count") or (QUICK_COUNT if options.get("quick") else FULL_COUNT)
+    return [f"{count} reference pairs of {s['photo'][0]}x{s['photo'][1]} from the shared "
+            f"panoramas, seed {options.get('seed', 0)}",
+            f"relight renders at {s['render']}x{s['render']}, {s['spp']} spp, environment "
+            f"{2 * s['env']}x{s['env']} (protocol default 256x256, 64 spp)",
+            "light-source errors only on cases with trustworthy light truth and a clipped "
+            "brightest region"]
+
+
+def _nan_metrics() -> dict[str, float]:
+    keys = ("relight_mse", "relight_psnr", "relight_angle_deg", "pu21_psnr",
+            "log_lum_rmse_stops", "relative_l1", "light_power_err_stops",
+            "light_peak_err_stops", "exposure_scale")
+    return dict.fromkeys(keys, math.nan)
+
+
+def _evaluate(pair: ReferencePair, pred: np.ndarray, renderer: RelightRenderer,
+              truth_render: np.ndarray) -> dict[str, float]:
+    if pred.shape != pair.truth.shape:
+        raise ValueError(f"returned shape {pred.shape}, expected {pair.truth.shape}")
+    if not np.all(np.isfinite(pred)):
+        raise ValueError("returned NaN or infinite values")
+    start = time.perf_counter()
+    render = truth_render if pred is pair.truth else renderer.render(pred, "perspective")
+    render_seconds = time.perf_counter() - start
+    relit = compare_renders(render, truth_render)
+    errors = hdr_errors(pred, pair.truth, align=True)
+    light = {"power_err_stops": math.nan, "peak_err_stops": math.nan}
+    if pair.light_truth and pair.light_clipped:
+        light = light_source_errors(pred * errors["exposure_scale"], pair.truth,
+                                    pixel_weights=pair.solid_angles)
+    return {
+        "relight_mse": relit.mse, "relight_psnr": relit.psnr,
+        "relight_angle_deg": relit.angular_error_deg,
+        "pu21_psnr": errors["pu21_psnr"], "log_lum_rmse_stops": errors["log_lum_rmse_stops"],
+        "relative_l1": errors["relative_l1"],
+        "light_power_err_stops": light["power_err_stops"],
+        "light_peak_err_stops": light["peak_err_stops"],
+        "exposure_scale": errors["exposure_scale"], "render_seconds": render_seconds,
+    }
+
+
+def run(options: dict[str, Any]) -> list[dict[str, Any]]:
+    quick = bool(options.get("quick"))
+    seed = int(options.get("seed", 0))
+    count = int(options.get("count") or (QUICK_COUNT if quick else FULL_COUNT))
+    s = _sizes(options)
+    width, height = s["photo"]
+    progress = options.get("progress")
+    sources = shared_sources(options.get("hdri_dir"))
+    renderer = RelightRenderer(resolution=s["render"], spp=s["spp"], env_height=s["env"],
+                               seed=seed)
+    wanted = options.get("methods") or methods()
+    rows: list[dict[str, Any]] = []
+    for i in range(count):
+        start = time.perf_counter()
+        pair = make_pair(sources[i % len(sources)], i, seed, width=width, height=height)
+        pair_seconds = time.perf_counter() - start
+        start = time.perf_counter()
+        truth_render = renderer.render(pair.truth, "perspective")
+        truth_render_seconds = time.perf_counter() - start
+        base = {
+            "case": pair.name, "source": pair.spec.source, "curve": pair.curve,
+            "fov": pair.spec.fov, "aimed_at_light": pair.spec.aimed_at_light,
+            "clipped_fraction": pair.clipped_fraction, "light_truth": pair.light_truth,
+            "light_clipped": pair.light_clipped, "pair_seconds": pair_seconds,
+            "truth_render_seconds": truth_render_seconds,
+            "render_resolution": s["render"], "render_spp": s["spp"],
+        }
+        megapixels = width * height / 1e6
+        for name in wanted:
+            row = {"method": name, "setting": "default", **base}
+            try:
+                start = time.perf_counter()
+                pred = np.asarray(_METHODS[name](pair), dtype=np.float32)
+                seconds = time.perf_counter() - start
+                if name == "oracle":
+                    pred = pair.truth  # the same object: its render is the truth's
+                row.update(seconds=seconds, sec_per_mp=seconds / megapixels)
+                row.update(_evaluate(pair, pred, renderer, truth_render))
+            except Exception as exc:  # noqa: BLE001 - one failing method must not stop the run
+                row.update(seconds=math.nan, sec_per_mp=math.nan, **_nan_metrics(),
+                           error=f"{type(exc).__name__}: {exc}")
+            rows.append(row)
+        if progress is not None:
+            progress.update(i + 1, count, case=pair.name)
+    return rows

@@ -1,0 +1,119 @@
+"""``gaslight2usd bench [--suite NAME ...] -o REPORT_DIR``: time against accuracy."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from ..atomic import write_text
+from ..bench import Discovery, SuiteResult, discover_suites, run_bench
+from ..bench.runner import jsonable
+from ..errors import EXIT_FAILED, InputError
+from ._common import add_common, emit, progress_from
+
+HELP = "measure time and accuracy of methods on ground truth; Pareto chart"
+DESCRIPTION = """\
+Run benchmark suites and write, per suite, NAME.csv (every case), NAME.json
+(cases, medians, options, versions) and NAME.png (time against accuracy, one
+point per method and setting at its medians, Pareto front marked) into
+REPORT_DIR, plus bench.json (what ran, how long, what failed). Prints a table
+of medians per suite.
+
+suites:
+{suites}
+examples:
+  gaslight2usd bench --suite uplift --quick -o out/bench
+  gaslight2usd bench -o out/bench            # every suite, full size
+"""
+
+
+def _suite_lines(discovery: Discovery) -> str:
+    lines = [f"  {name:<10} {module.DESCRIPTION}" for name, module in discovery.suites.items()]
+    lines += [f"  ({module} unusable: {why})" for module, why in discovery.broken.items()]
+    return "\n".join(lines or ["  (none found)"]) + "\n"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    discovery = discover_suites()
+    p = sub.add_parser("bench", help=HELP,
+                       description=DESCRIPTION.format(suites=_suite_lines(discovery)),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--suite", action="append", metavar="NAME", default=[],
+                   help="suite to run (repeatable; default: all)")
+    p.add_argument("--quick", action="store_true",
+                   help="small sizes and few cases (well under a minute per suite)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (0)")
+    p.add_argument("--count", type=int, metavar="N",
+                   help="number of cases (default: the suite's, e.g. uplift 200, quick 8)")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="REPORT_DIR",
+                   help="folder for the reports (created)")
+    add_common(p)
+    p.set_defaults(handler=run, discovery=discovery)
+
+
+def _format(value: Any) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "-"
+        return f"{value:.3g}" if abs(value) < 0.01 or abs(value) >= 1000 else f"{value:.3f}"
+    return str(value)
+
+
+def median_table(result: SuiteResult, columns: list[str]) -> str:
+    """A plain-text table: method, setting, cases, then ``columns`` (medians)."""
+    header = ["method", "setting", "cases", *columns, "pareto"]
+    body = [[_format(m.get(c, float("nan"))) for c in header] for m in result.medians]
+    widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)) for r in body]
+    return "\n".join(lines)
+
+
+def _columns(module: Any) -> list[str]:
+    table = getattr(module, "TABLE", None)
+    return list(table) if table else list(dict.fromkeys([module.X[0], module.Y[0]]))
+
+
+def run(args: argparse.Namespace) -> int:
+    discovery: Discovery = args.discovery
+    unknown = [n for n in args.suite if n not in discovery.suites]
+    if unknown:
+        raise InputError(f"unknown suite(s) {', '.join(unknown)}; available: "
+                         f"{', '.join(discovery.suites) or 'none'}")
+    progress = progress_from(args)
+    for module, why in discovery.broken.items():
+        progress.message(f"suite module {module} skipped: {why}")
+    names = args.suite or list(discovery.suites)
+    options = {"quick": args.quick, "seed": args.seed, "count": args.count,
+               "verbose": args.verbose}
+    results = []
+    for name in names:
+        progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")
+        results += run_bench([name], {**options, "progress": progress.child(name)},
+                             args.output, discovery)
+    text = []
+    for result in results:
+        module = discovery.suites[result.name]
+        text.append(f"== {result.name} ({result.seconds:.1f} s) ==")
+        text += [f"  note: {n}" for n in result.notes]
+        if result.error:
+            text.append(f"  FAILED: {result.error}")
+        if result.medians:
+            text.append(median_table(result, _columns(module)))
+            text.append("  wrote " + ", ".join(str(f) for f in result.files))
+    summary = {
+        "output": str(args.output),
+        "suites": [{"name": r.name, "ok": r.ok, "error": r.error, "seconds": r.seconds,
+                    "cases": len(r.rows), "files": [str(f) for f in r.files],
+                    "notes": r.notes} for r in results],
+        "skipped_modules": discovery.broken,
+    }
+    write_text(Path(args.output) / "bench.json", json.dumps(summary, indent=2))
+    emit(args, jsonable({**summary, "medians": {r.name: r.medians for r in results}}),
+         "\n".join(text))
+    return 0 if all(r.ok for r in results) else EXIT_FAILED

@@ -1,0 +1,168 @@
+"""The bench framework: medians, Pareto front, reports, suite discovery, the uplift
+suite's methods and registration hook, and the CLI end to end."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+import types
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+import gaslight_usd.bench as bench
+from gaslight_usd.bench import suite_uplift
+from gaslight_usd.bench.chart import pareto_front
+from gaslight_usd.bench.runner import aggregate, run_suite
+from gaslight_usd.cli.main import main
+from gaslight_usd.evaluation import reference
+
+
+def test_aggregate_medians_skip_nan_and_text():
+    rows = [
+        {"method": "a", "setting": "s", "t": 1.0, "e": 3.0, "note": "x", "flag": True},
+        {"method": "a", "setting": "s", "t": 3.0, "e": math.nan},
+        {"method": "a", "setting": "s", "t": 8.0, "e": 5.0},
+        {"method": "b", "setting": "s", "t": 2.0, "e": math.nan},
+    ]
+    med = {m["method"]: m for m in aggregate(rows)}
+    assert med["a"]["cases"] == 3 and med["a"]["t"] == 3.0 and med["a"]["e"] == 4.0
+    assert "note" not in med["a"] and "flag" not in med["a"]
+    assert math.isnan(med["b"]["e"])
+
+
+def test_pareto_front_by_hand():
+    pts = [{"x": 1, "y": 10}, {"x": 2, "y": 20}, {"x": 3, "y": 15}, {"x": 0.5, "y": 5},
+           {"x": 2, "y": 20}, {"x": math.nan, "y": 99}]
+    assert pareto_front(pts, "x", "y", True) == [True, True, False, True, True, False]
+    # Lower-is-better Y: the cheapest point with the lowest error dominates everything.
+    assert pareto_front(pts[:4], "x", "y", False) == [False, False, False, True]
+
+
+def _tiny_suite() -> types.ModuleType:
+    module = types.ModuleType("suite_tiny")
+    module.NAME = "tiny"
+    module.DESCRIPTION = "two methods, three cases"
+    module.X = ("seconds", "seconds (s)")
+    module.Y = ("error", "error (stops)")
+    module.HIGHER_IS_BETTER = False
+
+    def run(options):
+        return [{"method": m, "setting": "default", "case": i, "seconds": t * (i + 1),
+                 "error": e + i} for m, t, e in (("fast", 0.1, 2.0), ("slow", 1.0, 0.5))
+                for i in range(3)]
+
+    module.run = run
+    return module
+
+
+def test_run_suite_writes_csv_json_and_chart(tmp_path):
+    result = run_suite(_tiny_suite(), {"quick": True, "seed": 0}, tmp_path)
+    assert result.ok and len(result.rows) == 6
+    med = {m["method"]: m for m in result.medians}
+    assert med["fast"]["seconds"] == pytest.approx(0.2) and med["slow"]["error"] == 1.5
+    assert med["fast"]["pareto"] and med["slow"]["pareto"]  # a genuine trade-off
+    with open(tmp_path / "tiny.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == 6
+    report = json.loads((tmp_path / "tiny.json").read_text())
+    assert report["y"] == {"key": "error", "label": "error (stops)"}
+    assert {m["method"] for m in report["medians"]} == {"fast", "slow"}
+    png = oiio.ImageBuf(str(tmp_path / "tiny.png"))
+    assert png.spec().width > 400 and png.spec().nchannels >= 3
+    pixels = png.get_pixels(oiio.FLOAT)
+    assert pixels.std() > 0.05  # not a blank canvas
+
+
+def test_reference_methods_stay_off_the_front(tmp_path):
+    module = _tiny_suite()
+    module.REFERENCES = ("slow",)
+    result = run_suite(module, {}, tmp_path)
+    med = {m["method"]: m for m in result.medians}
+    assert med["fast"]["pareto"] and not med["slow"]["pareto"]
+
+
+def test_failing_suite_is_reported_not_raised(tmp_path):
+    module = _tiny_suite()
+
+    def broken(options):
+        raise RuntimeError("boom")
+
+    module.run = broken
+    result = run_suite(module, {}, tmp_path)
+    assert not result.ok and "boom" in result.error and not result.files
+
+
+def test_discovery_survives_a_broken_suite(tmp_path, monkeypatch):
+    (tmp_path / "suite_broken.py").write_text("import not_a_real_module_xyz\n")
+    (tmp_path / "suite_incomplete.py").write_text("NAME = 'half'\n")
+    monkeypatch.setattr(bench, "__path__", [*bench.__path__, str(tmp_path)])
+    found = bench.discover_suites()
+    assert "uplift" in found.suites
+    assert "not_a_real_module_xyz" in found.broken["suite_broken"]
+    assert "missing" in found.broken["suite_incomplete"]
+    for name in ("suite_broken", "suite_incomplete"):
+        sys.modules.pop(f"gaslight_usd.bench.{name}", None)
+
+
+needs_hdri = pytest.mark.skipif(not (reference.default_hdri_dir() / "forest.exr").exists(),
+                                reason="shared panoramas not present")
+
+
+@needs_hdri
+def test_uplift_suite_baseline_oracle_and_a_registered_method():
+    def twice_the_baseline(ldr, curve):
+        return 2.0 * suite_uplift.ldr_baseline(ldr, curve)
+
+    suite_uplift.register_uplift_method("test-double", twice_the_baseline)
+    try:
+        rows = suite_uplift.run({"quick": True, "seed": 0, "count": 3,
+                                 "methods": ["ldr-baseline", "oracle", "test-double"]})
+    finally:
+        suite_uplift._METHODS.pop("test-double", None)
+    by = {(r["method"], r["case"]): r for r in rows}
+    cases = sorted({r["case"] for r in rows})
+    assert len(rows) == 9 and not any("error" in r for r in rows)
+    for case in cases:
+        oracle, base, double = (by[(m, case)] for m in ("oracle", "ldr-baseline", "test-double"))
+        assert oracle["relight_mse"] == 0 and oracle["pu21_psnr"] == 100.0
+        assert base["relight_psnr"] < 100.0
+        # Exposure alignment makes a 2x copy of the baseline score exactly like it.
+        assert double["exposure_scale"] == pytest.approx(base["exposure_scale"] / 2, rel=1e-5)
+        for key in ("relight_mse", "pu21_psnr", "log_lum_rmse_stops"):
+            assert double[key] == pytest.approx(base[key], rel=1e-4, abs=1e-9)
+        if base["light_truth"] and base["light_clipped"]:
+            assert base["light_power_err_stops"] < 0  # the clipped light is lost
+        else:
+            assert math.isnan(base["light_power_err_stops"])
+
+
+@needs_hdri
+def test_bad_method_output_becomes_an_error_row():
+    suite_uplift.register_uplift_method("test-wrong-shape", lambda ldr, curve: ldr[:2])
+    try:
+        rows = suite_uplift.run({"quick": True, "count": 1, "methods": ["test-wrong-shape"]})
+    finally:
+        suite_uplift._METHODS.pop("test-wrong-shape", None)
+    assert "shape" in rows[0]["error"] and math.isnan(rows[0]["relight_psnr"])
+
+
+@needs_hdri
+def test_cli_bench_prints_baseline_medians(tmp_path, capsys):
+    code = main(["bench", "--suite", "uplift", "--quick", "--count", "2", "-q",
+                 "-o", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "ldr-baseline" in out and "relight_psnr" in out and "pu21_psnr" in out
+    for name in ("uplift.csv", "uplift.json", "uplift.png", "bench.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    report = json.loads((tmp_path / "uplift.json").read_text())
+    baseline = next(m for m in report["medians"] if m["method"] == "ldr-baseline")
+    assert 5.0 < baseline["relight_psnr"] < 100.0 and np.isfinite(baseline["pu21_psnr"])
+
+
+def test_cli_unknown_suite_is_a_bad_input(tmp_path, capsys):
+    assert main(["bench", "--suite", "nope", "-o", str(tmp_path)]) == 3
+    assert "unknown suite" in capsys.readouterr().err
