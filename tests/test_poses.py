@@ -186,7 +186,7 @@ def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
     _write_jpeg(photos / "zz_stray.jpg", rng.random((360, 480, 3)))
     out = tmp_path / "sparse"
     proc = subprocess.run(
-        [sys.executable, "-m", "gaslight_usd.cli.main", "poses", str(photos), "-o", str(out),
+        [str(Path(sys.executable).with_name("gaslight2usd")), "poses", str(photos), "-o", str(out),
          "--camera-model", "PINHOLE", "--json", "-q"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
@@ -226,7 +226,7 @@ def test_cli_converts_colmap_to_transforms_and_back(tmp_path):
     model = ring_model(4)
     from gaslight_usd.colmap import write_model
     write_model(tmp_path / "sparse" / "0", model, binary=True)
-    cli = [sys.executable, "-m", "gaslight_usd.cli.main", "poses"]
+    cli = [str(Path(sys.executable).with_name("gaslight2usd")), "poses"]
     proc = subprocess.run(cli + ["--from", str(tmp_path / "sparse"), "-o",
                                  str(tmp_path / "t" / "transforms.json"), "--json"],
                           capture_output=True, text=True)
