@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..chain import ChainRun
 from ..errors import InputError, NotBuiltYet
-from ..imageio import LDR_EXTENSIONS
+from ..imageio import LDR_EXTENSIONS, list_images
 from ..kinds import Artifact, Kind
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
@@ -25,11 +25,26 @@ exposure.
 
 methods:
   linear     the photo linearised, no uplift (the baseline; lamps stay clipped)
-  bracket    merge bracketed exposures of each view (not built yet)
-  recursive  GaSLight recursive exposure prediction (not built yet)
+  bracket    merge bracketed exposures of each view (grouped by EXIF exposure and
+             capture time, or --group-file); refuses photos that hold no bracket
+  recursive  GaSLight recursive exposure prediction: a predictor renders the photo
+             2 EV darker, again and again until nothing is above --threshold
+             (at most 6 steps, EV -12); the stack is merged (Debevec, log domain)
   auto       bracket when brackets are present, else recursive
 
+predictors (--predictor, recursive only):
+  fast       calibrated highlight model, CPU, no downloaded weights (default)
+  diffusion  the GaSLight diffusion model; bring your own weights: --weights PATH
+             or $GASLIGHT_WEIGHTS (needs the optional `diffusers` package)
+  reexpose   no prediction (clipped regions stay flat; a baseline)
+  oracle     tests and benchmarks only (needs a ground-truth HDR)
+
+A 2:1 photo is treated as a lat-long panorama: uplifted face by face on a cube
+and blended back (--panorama off to disable).
+
 examples:
+  gaslight2usd hdr examples/room/photos -o out/hdr
+  gaslight2usd hdr shots/ -o out/hdr --method bracket --group-file groups.txt
   gaslight2usd hdr examples/room/photos -o out/hdr --method linear
 """
 
@@ -41,6 +56,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, metavar="HDR_DIR",
                    help="folder for the EXRs (created)")
     p.add_argument("--method", choices=["auto", *METHODS], default="auto")
+    u = p.add_argument_group("uplift")
+    u.add_argument("--predictor", default="fast", metavar="NAME",
+                   help="exposure predictor for --method recursive (default: fast)")
+    u.add_argument("--weights", metavar="PATH",
+                   help="predictor weights (diffusion: checkpoint; default $GASLIGHT_WEIGHTS)")
+    u.add_argument("--threshold", type=float, default=0.9,
+                   help="stop darker steps when the darkest image's max is below this "
+                        "(encoded, default 0.9)")
+    u.add_argument("--max-steps", type=int, default=6, help="most darker steps (default 6)")
+    u.add_argument("--brighter", action="store_true",
+                   help="also predict +2/+4 EV images for the shadows")
+    u.add_argument("--save-stacks", action="store_true",
+                   help="write the exposure stacks as 16-bit PNGs under HDR_DIR/stacks")
+    u.add_argument("--group-file", type=Path, metavar="FILE",
+                   help="bracket grouping: JSON {view: [photos]} or lines 'view: a.jpg b.jpg'")
+    u.add_argument("--response", choices=["ocio", "debevec"], default="ocio",
+                   help="bracket camera response: the --input-space transform (default) or "
+                        "recovered from each bracket (Debevec-Malik)")
+    u.add_argument("--panorama", choices=["auto", "on", "off"], default="auto",
+                   help="treat 2:1 photos as lat-long panoramas (default auto)")
     add_common(p, colour=True)
     p.set_defaults(handler=run)
 
@@ -58,15 +93,43 @@ def _photo_folder(paths: list[Path], scratch: Path) -> Path:
     return scratch
 
 
+def _photo_paths(paths: list[Path]) -> list[Path]:
+    if len(paths) == 1 and paths[0].is_dir():
+        return list_images(paths[0], LDR_EXTENSIONS)
+    return [p for p in paths if p.is_file()]
+
+
+def _auto_method(args: argparse.Namespace) -> str:
+    """bracket when brackets are present (or a grouping file is given), else recursive."""
+    if args.group_file:
+        return "bracket"
+    from ..uplift.bracket import find_brackets
+
+    s = settings_from(args)
+    found = find_brackets(_photo_paths(args.photos), s.input_space, s.working_space,
+                          s.ocio_config)
+    return "bracket" if found else "recursive"
+
+
+def _stage_options(args: argparse.Namespace) -> dict:
+    if not 0.0 < args.threshold <= 1.0:
+        raise InputError(f"--threshold must be in (0, 1], got {args.threshold}")
+    if args.max_steps < 0:
+        raise InputError(f"--max-steps must be >= 0, got {args.max_steps}")
+    return {"predictor": args.predictor, "weights": args.weights,
+            "threshold": args.threshold, "max_steps": args.max_steps,
+            "brighter": args.brighter, "save_stacks": args.save_stacks,
+            "group_file": str(args.group_file) if args.group_file else None,
+            "response": args.response, "panorama": args.panorama}
+
+
 def run(args: argparse.Namespace) -> int:
     registry = default_registry()
-    wanted = METHODS.get(args.method) if args.method != "auto" else None
-    if args.method == "auto":
-        wanted = next((c.name for c in registry.producing(Kind.HDR_VIEWS)
-                       if c.step == "uplift"), None)
+    method = _auto_method(args) if args.method == "auto" else args.method
+    wanted = METHODS.get(method)
     if wanted not in registry:
-        raise NotBuiltYet(f"uplift method {args.method!r} is not built yet; "
-                          f"available: linear")
+        built = ", ".join(m for m, c in METHODS.items() if c in registry)
+        raise NotBuiltYet(f"uplift method {method!r} is not built yet; available: {built}")
     settings = settings_from(args)
     out = args.output
     scratch = Path(tempfile.mkdtemp(prefix="gaslight-photos-"))
@@ -76,10 +139,11 @@ def run(args: argparse.Namespace) -> int:
         runner = ChainRun(out, settings, registry, progress_from(args))
         arts = runner.run([Artifact(Kind.LDR_VIEWS, folder)], [Kind.HDR_VIEWS],
                           choose={"uplift": wanted}, outputs={Kind.HDR_VIEWS: out},
+                          options={"uplift": _stage_options(args)},
                           resume=False)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     record = runner.records[-1]
     emit(args, {"output": str(arts[Kind.HDR_VIEWS].path), **record.counts, **record.metrics},
-         f"wrote {record.counts.get('views')} HDR views to {out}")
+         f"wrote {record.counts.get('views')} HDR views to {out} ({method})")
     return 0

@@ -1,0 +1,260 @@
+"""HDR uplift: merge, recursion, predictors, panoramas, the converter and CLI."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+from conftest import SHARED_HDRI, write_jpeg
+
+from gaslight_usd import colour
+from gaslight_usd.cli.main import main
+from gaslight_usd.errors import InputError
+from gaslight_usd.imageio import read_image
+from gaslight_usd.uplift import (
+    GAMMA22,
+    SRGB,
+    available_predictors,
+    get_predictor,
+    input_transform,
+    merge_stack,
+    stack_weights,
+    uplift_recursive,
+)
+from gaslight_usd.uplift.fast_predictor import FastPredictor
+from gaslight_usd.uplift.merge import trapezoid
+from gaslight_usd.uplift.panorama import faces_to_latlong, latlong_to_faces, uplift_panorama
+from gaslight_usd.uplift.predictors import ReexposePredictor
+
+
+def lamp_scene(size: int = 64, peak: float = 1000.0) -> np.ndarray:
+    """Linear HDR: a grey gradient wall and a Gaussian lamp of the given peak."""
+    y, x = np.mgrid[0:size, 0:size].astype(np.float32)
+    wall = 0.05 + 0.3 * x / size
+    r2 = (x - size * 0.6) ** 2 + (y - size * 0.4) ** 2
+    lamp = peak * np.exp(-r2 / (2 * (size / 16) ** 2))
+    hdr = (wall + lamp)[..., None] * np.array([1.0, 0.9, 0.7], np.float32)
+    return hdr.astype(np.float32)
+
+
+def test_paper_weights_hand_values():
+    v = np.array([0.0, 0.1, 0.5, 0.8, 0.9, 1.0], np.float32)
+    np.testing.assert_allclose(trapezoid(v, 0.0, 0.8), [1, 1, 1, 1, 0.5, 0], atol=1e-6)  # EV 0
+    np.testing.assert_allclose(trapezoid(v, 0.5, 0.5), [0, 0.2, 1, 0.4, 0.2, 0], atol=1e-6)
+    np.testing.assert_allclose(trapezoid(v, 0.5, 1.0), [0, 0.2, 1, 1, 1, 1], atol=1e-6)  # darkest
+    w = stack_weights(np.stack([v, v, v]), [0.0, -2.0, -4.0])
+    np.testing.assert_allclose(w[0], trapezoid(v, 0.0, 0.8))
+    np.testing.assert_allclose(w[2], trapezoid(v, 0.5, 1.0))
+
+
+def test_merge_of_exact_exposures_recovers_radiance():
+    hdr = lamp_scene(peak=3000.0)
+    evs = [0.0, -2.0, -4.0, -6.0, -8.0, -10.0, -12.0]
+    stack = [np.clip(GAMMA22.to_encoded(np.clip(hdr * 2.0 ** e, 0, 1)), 0, 1) for e in evs]
+    merged = merge_stack(stack, evs, GAMMA22)
+    np.testing.assert_allclose(merged, hdr, rtol=1e-3)
+
+
+def test_recursion_with_oracle_takes_just_enough_steps():
+    hdr = lamp_scene(peak=1000.0)
+    photo = SRGB.to_encoded(np.clip(hdr, 0, 1))
+    res = uplift_recursive(photo, get_predictor("oracle", hdr=hdr), SRGB)
+    # 1000 / 4**5 = 0.98 still encodes above 0.9; 1000 / 4**6 = 0.24 does not.
+    assert res.evs == [0.0, -2.0, -4.0, -6.0, -8.0, -10.0, -12.0]
+    np.testing.assert_allclose(res.linear, hdr, rtol=2e-3)
+    three = uplift_recursive(photo, get_predictor("oracle", hdr=hdr), SRGB, max_steps=3)
+    assert three.darker_steps == 3 and three.linear.max() == pytest.approx(64.0, rel=1e-3)
+    loose = uplift_recursive(photo, get_predictor("oracle", hdr=hdr), SRGB, threshold=0.995)
+    assert loose.darker_steps == 5  # 1000 / 4**5 encodes to 0.990
+
+
+def test_unclipped_photo_gets_no_step_and_stays_exact():
+    hdr = lamp_scene(peak=0.5)
+    photo = SRGB.to_encoded(hdr)
+    for name in ("fast", "reexpose"):
+        res = uplift_recursive(photo, get_predictor(name), SRGB)
+        assert res.evs == [0.0]
+        np.testing.assert_allclose(res.linear, SRGB.to_linear(photo), rtol=1e-6)
+
+
+def test_reexpose_predictor_keeps_the_baseline():
+    hdr = lamp_scene(peak=100.0)
+    photo = SRGB.to_encoded(np.clip(hdr, 0, 1))
+    res = uplift_recursive(photo, ReexposePredictor(), SRGB)
+    assert res.darker_steps == 1  # the re-exposed clip (0.25) is below the threshold
+    np.testing.assert_allclose(res.linear, SRGB.to_linear(photo), rtol=1e-3, atol=1e-6)
+
+
+def test_fast_predictor_fills_clipped_lamp_and_keeps_the_rest():
+    hdr = lamp_scene(size=96, peak=400.0)
+    photo = np.round(SRGB.to_encoded(np.clip(hdr, 0, 1)) * 255) / 255
+    clipped = photo.max(axis=-1) >= 0.99
+    assert clipped.sum() > 20
+    res = uplift_recursive(photo, FastPredictor(), SRGB)
+    out = res.linear
+    # nothing left at the clip level: every clipped pixel is predicted above white
+    assert np.all(out[clipped].max(axis=-1) > 1.0)
+    assert res.stack[-1].max() < 0.9
+    # unclipped pixels are the plain linearisation
+    np.testing.assert_allclose(out[~clipped], SRGB.to_linear(photo)[~clipped], rtol=1e-3,
+                               atol=1e-5)
+    # the lamp's energy is closer to the truth than the clipped photo's
+    truth, base = hdr[clipped].sum(), SRGB.to_linear(photo)[clipped].sum()
+    assert abs(np.log2(out[clipped].sum() / truth)) < abs(np.log2(base / truth))
+    # brighter towards the lamp centre (the profile has a shape, not a flat fill)
+    centre = np.unravel_index(np.argmax(hdr[..., 0]), hdr.shape[:2])
+    assert out[centre].max() >= np.percentile(out[clipped].max(axis=-1), 90)
+
+
+def test_fast_predictor_agrees_with_itself_down_the_stack():
+    hdr = lamp_scene(size=64, peak=5000.0)
+    photo = SRGB.to_encoded(np.clip(hdr, 0, 1))
+    fast = FastPredictor()
+    res = uplift_recursive(photo, fast, SRGB)
+    estimate = fast.estimate(photo, SRGB)
+    for img, ev in zip(res.stack[1:], res.evs[1:], strict=True):
+        expected = SRGB.to_encoded(np.clip(estimate * 2.0 ** ev, 0, 1))
+        np.testing.assert_allclose(img, expected, atol=1e-5)
+
+
+@pytest.mark.skipif(not (SHARED_HDRI / "sunset.exr").exists(), reason="shared HDRIs absent")
+def test_fast_predictor_on_held_out_real_crops_beats_the_baseline():
+    """sunset is held out of calibration: the sun's energy must come closer to the truth."""
+    from gaslight_usd.evaluation.reference import load_source, make_pair
+    from gaslight_usd.uplift.calibrate import evaluation_curve
+
+    source = load_source(SHARED_HDRI / "sunset.exr")
+    fast, errs_fast, errs_base = FastPredictor(), [], []
+    for i in range(12):
+        pair = make_pair(source, i, seed=7, width=128, height=96, aim_light_fraction=1.0)
+        curve = evaluation_curve(pair.curve)
+        clipped = pair.ldr.max(axis=-1) >= 0.99
+        if clipped.sum() < 4:
+            continue
+        out = uplift_recursive(pair.ldr, fast, curve).linear
+        truth = pair.truth[clipped].sum()
+        errs_fast.append(abs(np.log2(out[clipped].sum() / truth)))
+        errs_base.append(abs(np.log2(curve.to_linear(pair.ldr)[clipped].sum() / truth)))
+    assert len(errs_fast) >= 4
+    assert np.median(errs_fast) < np.median(errs_base)
+
+
+def test_input_transform_splits_srgb_exactly():
+    t = input_transform("sRGB Encoded Rec.709 (sRGB)", "ACEScg")
+    assert t.exact
+    rng = np.random.default_rng(1)
+    v = rng.random((100, 3), dtype=np.float32)
+    truth = colour.convert(v, "sRGB Encoded Rec.709 (sRGB)", "ACEScg")
+    np.testing.assert_allclose(t.to_working(t.curve.to_linear(v)), truth, atol=1e-4)
+    np.testing.assert_allclose(t.curve.to_linear(v), SRGB.to_linear(v), atol=1e-4)
+
+
+def test_predictor_registry_names_and_errors():
+    names = available_predictors()
+    assert {"fast", "oracle", "reexpose", "diffusion"} <= set(names)
+    with pytest.raises(InputError, match="unknown predictor 'nope'"):
+        get_predictor("nope")
+    with pytest.raises(InputError, match="ground-truth"):
+        get_predictor("oracle")
+
+
+def test_diffusion_without_diffusers_or_weights_is_a_clear_error(monkeypatch):
+    from gaslight_usd.uplift import diffusion
+
+    monkeypatch.delenv(diffusion.ENV_WEIGHTS, raising=False)
+    with pytest.raises(InputError, match="diffusers|weights"):
+        get_predictor("diffusion")
+
+
+@pytest.mark.skipif(not __import__("gaslight_usd.uplift.diffusion", fromlist=["x"])
+                    .diffusers_available(), reason="diffusers is an optional extra")
+def test_diffusion_plumbing_with_a_tiny_random_network():
+    from gaslight_usd.uplift.diffusion import DiffusionPredictor, tiny_components
+
+    pred = DiffusionPredictor(components=tiny_components(), device="cpu", steps=2,
+                              resolution=32)
+    photo = SRGB.to_encoded(np.clip(lamp_scene(size=40, peak=50.0), 0, 1))
+    out = pred.darker(photo, SRGB, 0.0)
+    assert out.shape == photo.shape and np.all((out >= 0) & (out <= 1))
+    again = DiffusionPredictor(components=tiny_components(), device="cpu", steps=2,
+                               resolution=32).darker(photo, SRGB, 0.0)
+    np.testing.assert_allclose(out, again, atol=1e-5)  # seeded
+
+
+def test_panorama_faces_round_trip_and_seamless_uplift():
+    h, w = 64, 128
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    pano = np.stack([0.2 + 0.3 * np.sin(2 * np.pi * x / w) ** 2, 0.3 + 0.2 * y / h,
+                     np.full_like(x, 0.4)], axis=-1)
+    back = faces_to_latlong(latlong_to_faces(pano, 48), w, h)
+    inner = slice(4, h - 4)  # the poles are undersampled by any cube
+    np.testing.assert_allclose(back[inner], pano[inner], atol=0.02)
+    doubled = uplift_panorama(pano, lambda face: face * 2.0, face_size=48)
+    np.testing.assert_allclose(doubled[inner], 2 * back[inner], rtol=1e-4, atol=1e-5)
+
+
+def write_png16(path: Path, pixels: np.ndarray) -> Path:
+    data = np.round(np.clip(pixels, 0, 1) * 65535).astype(np.uint16)
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), oiio.ImageSpec(data.shape[1], data.shape[0], 3, oiio.UINT16))
+    out.write_image(data)
+    out.close()
+    return path
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    """Run the CLI in this process (a subprocess costs seconds of imports)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
+
+
+def test_cli_recursive_writes_views_with_metadata(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    lamp = SRGB.to_encoded(np.clip(lamp_scene(size=64, peak=300.0), 0, 1))
+    write_jpeg(photos / "lamp.jpg", np.round(lamp * 255).astype(np.uint8), exposure_time=0.01)
+    dull = SRGB.to_encoded(lamp_scene(size=64, peak=0.2))
+    write_jpeg(photos / "dull.jpg", np.round(dull * 255).astype(np.uint8), exposure_time=0.01)
+    white = np.full((64, 64, 3), 255, np.uint8)
+    write_jpeg(photos / "white.jpg", white, exposure_time=0.01)
+    write_jpeg(photos / "black.jpg", np.zeros_like(white), exposure_time=0.01)
+    write_png16(photos / "deep.tif", lamp)  # a 16-bit TIFF
+    out = tmp_path / "hdr"
+    r = run_cli("hdr", str(photos), "-o", str(out), "--json", "-q", "--save-stacks",
+                "--working-space", "lin_rec709")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["views"] == 5
+    lamp_view = read_image(out / "lamp.exr")
+    md = lamp_view.metadata
+    assert md["gaslight:method"] == "recursive" and md["gaslight:predictor"] == "fast"
+    assert md["gaslight:ev_steps"] >= 1 and md["gaslight:clipped_fraction_before"] > 0
+    assert md["gaslight:clipped_fraction_after"] == 0
+    assert lamp_view.pixels.max() > 1.0
+    assert (out / "stacks" / "lamp_ev-2.png").exists()
+    dull_view = read_image(out / "dull.exr")
+    assert dull_view.metadata["gaslight:ev_steps"] == 0
+    base = read_image(photos / "dull.jpg", to_space="lin_rec709").pixels
+    np.testing.assert_allclose(dull_view.pixels, base, rtol=2e-3, atol=2e-4)
+    # documented results: a black photo stays black; a white one has nothing to
+    # extrapolate from (no unclipped border) and stays at white
+    assert read_image(out / "black.exr").pixels.max() == 0
+    white_view = read_image(out / "white.exr").pixels
+    assert white_view.min() == pytest.approx(white_view.max())
+    tif = read_image(out / "deep.exr")
+    assert tif.metadata["gaslight:ev_steps"] >= 1 and tif.pixels.max() > 1.0
+
+
+def test_cli_rejects_bad_threshold_and_unknown_predictor(tmp_path, photo_folder):
+    r = run_cli("hdr", str(photo_folder), "-o", str(tmp_path / "a"), "--threshold", "0")
+    assert r.returncode == 3 and "threshold" in r.stderr
+    r = run_cli("hdr", str(photo_folder), "-o", str(tmp_path / "b"), "--method", "recursive",
+                "--predictor", "nope")
+    assert r.returncode == 3 and "unknown predictor" in r.stderr
