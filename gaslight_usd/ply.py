@@ -98,9 +98,17 @@ def read_ply(path: str | Path) -> SplatScene:
         raise InputError(f"{len(rest_names)} f_rest properties: {exc}", path) from exc
     k = sh_coefficient_count(k)
 
+    fields = list(vertex.dtype.names or ())
+    packed_f4 = n > 0 and vertex.dtype.itemsize == 4 * len(fields) and all(
+        vertex.dtype[f] == np.dtype("<f4") for f in fields)
+    # All-float32 PLYs (nearly every 3DGS file): one (N, P) view, columns gathered at once.
+    table = np.asarray(vertex).view("<f4").reshape(n, len(fields)) if packed_f4 else None
+
     def stack(props: list[str]) -> np.ndarray:
         if not props:
             return np.zeros((n, 0), dtype=np.float32)
+        if table is not None:
+            return np.ascontiguousarray(table[:, [fields.index(p) for p in props]])
         return np.stack([np.asarray(vertex[p], dtype=np.float32) for p in props], axis=1)
 
     sh = np.empty((n, k, 3), dtype=np.float32)

@@ -1,0 +1,82 @@
+"""Bench suite "render": the splat renderer's speed on the CPU.
+
+Milliseconds per 256x256 forward pass and per backward pass (gradients of all
+splat parameters, SH degree 3) for 10k, 50k and 200k random splats in front of
+the camera (scales shrink with the count so the image stays similarly
+covered). Median of 3 timed runs after one warm-up; wall time on this machine
+with its torch thread count, so compare rows of one run only. Quick mode:
+10k splats, 2 runs.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import torch
+
+from ..cameras import PinholeCamera
+from ..render import SplatParams, render
+from ..splats import SplatScene
+
+NAME = "render"
+DESCRIPTION = "splat renderer: ms per 256x256 forward + backward pass vs splat count"
+X = ("splats", "splats")
+Y = ("ms_forward_backward", "ms per 256x256 forward + backward pass")
+HIGHER_IS_BETTER = False
+TABLE = ("splats", "tile", "ms_forward", "ms_backward", "ms_forward_backward", "mean_alpha")
+SIZE = 256
+
+
+def random_scene(n: int, rng: np.random.Generator) -> SplatScene:
+    pos = rng.uniform([-1.5, -1.5, 2.0], [1.5, 1.5, 6.0], (n, 3))
+    scales = np.exp(rng.uniform(np.log(0.005), np.log(0.05), (n, 3))) * (1e4 / n) ** (1 / 3)
+    scene = SplatScene.from_activated(pos, rng.uniform(0, 3, (n, 3)), scales,
+                                      rng.uniform(0.05, 0.99, n),
+                                      rotations=rng.normal(size=(n, 4)), sh_degree=3)
+    scene.sh[:, 1:] = rng.normal(0, 0.1, scene.sh[:, 1:].shape)
+    return scene
+
+
+def time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int
+                ) -> tuple[float, float, float]:
+    params = SplatParams.from_scene(scene, requires_grad=True)
+    fwd, bwd = [], []
+    for i in range(runs + 1):
+        t0 = time.perf_counter()
+        out = render(params, cam, tile=tile)
+        t1 = time.perf_counter()
+        out.image.sum().backward()
+        t2 = time.perf_counter()
+        for v in params.tensors().values():
+            v.grad = None
+        if i:  # the first run warms up
+            fwd.append(t1 - t0)
+            bwd.append(t2 - t1)
+    cover = float(out.alpha.detach().mean())
+    return float(np.median(fwd)) * 1e3, float(np.median(bwd)) * 1e3, cover
+
+
+def run(options: dict[str, Any]) -> list[dict[str, Any]]:
+    quick = bool(options.get("quick"))
+    rng = np.random.default_rng(int(options.get("seed", 0)))
+    cam = PinholeCamera(SIZE, SIZE, 220.0, 220.0, SIZE / 2, SIZE / 2, np.eye(3), np.zeros(3))
+    counts = [10_000] if quick else [10_000, 50_000, 200_000]
+    tiles = [8] if quick else [8, 16]
+    rows = []
+    for n in counts:
+        scene = random_scene(n, rng)
+        for tile in tiles:
+            fwd, bwd, cover = time_render(scene, cam, tile, 2 if quick else 3)
+            rows.append({"method": f"torch tiles {tile}px", "setting": f"{n // 1000}k splats",
+                         "splats": n, "tile": tile, "ms_forward": round(fwd, 1),
+                         "ms_backward": round(bwd, 1),
+                         "ms_forward_backward": round(fwd + bwd, 1),
+                         "mean_alpha": round(cover, 3), "threads": torch.get_num_threads()})
+    return rows
+
+
+def notes(options: dict[str, Any]) -> list[str]:
+    return [f"{SIZE}x{SIZE} pinhole, SH degree 3, torch {torch.__version__}, "
+            f"{torch.get_num_threads()} thread(s); wall time, median of runs after a warm-up"]

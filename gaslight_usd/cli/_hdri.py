@@ -1,0 +1,82 @@
+"""``gaslight2usd hdri SPLATS --at X,Y,Z -o probe.exr``: HDRIs rendered from splats."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..chain import StageContext
+from ..errors import InputError
+from ..kinds import Artifact, Kind
+from ._common import add_common, emit, progress_from, settings_from
+from ._export import _point
+
+HELP = "render lat-long / cube-map EXR HDRIs from the splats at probe points"
+DESCRIPTION = """\
+Render the splats' light as seen from one or more points and write EXRs.
+
+conventions (also written in every EXR header):
+  lat-long  OpenEXR envmap=latlong: the image centre looks along +Z, a quarter
+            width from the left along +X, the top row is +Y; width = 2 x height
+  cube      OpenEXR envmap=cube: six square faces stacked vertically in the
+            order +X, -X, +Y, -Y, +Z, -Z (OpenEXR face orientation); --faces
+            also writes them as NAME.px.exr, .nx, .py, .ny, .pz, .nz
+  frame     positions (--at) and directions are in the world frame of the
+            splats: the poses the user gave, or the frame the project chose and
+            recorded when poses came from SfM (+Y up, origin at the scene centre)
+  radiance  scene-linear and unclamped (float EXR when above the half range),
+            in --output-space (an OCIO name; default the working space, ACEScg)
+
+outputs: with one --at, -o NAME.exr is the lat-long; NAME.cube.exr the cube
+map; NAME.tx the tiled mip-mapped texture (OpenImageIO maketx). With several
+--at, NAME.000.exr, NAME.001.exr... in the order given.
+
+examples:
+  gaslight2usd hdri out/splats.ply --at 0,1.5,0 -o out/probe.exr --cube
+  gaslight2usd hdri out/splats.ply --at 0,1,0 --at 2,1,0 -o probes/p.exr --size 1024
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("hdri", help=HELP, description=DESCRIPTION,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("splats", type=Path, help="3DGS PLY (linear HDR colours)")
+    p.add_argument("--at", type=_point, action="append", metavar="X,Y,Z",
+                   help="probe point in the splats' world frame (repeat for several; "
+                        "default: centre of the splats' bounds)")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="PROBE.exr",
+                   help="lat-long EXR to write (numbered when several --at)")
+    p.add_argument("--size", type=int, default=2048, metavar="N",
+                   help="lat-long width in pixels (height N/2; cube faces N/4); "
+                        "default 2048")
+    p.add_argument("--cube", action="store_true", help="also write the cube map")
+    p.add_argument("--faces", action="store_true", help="also write six face files")
+    p.add_argument("--tx", action="store_true",
+                   help="also write a tiled mip-mapped lat-long .tx (maketx)")
+    p.add_argument("--output-space", metavar="NAME",
+                   help="OCIO colour space of the files (default: the working space)")
+    add_common(p, colour=True)
+    p.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..converters.export_hdri import export_hdri_stage
+
+    if not args.splats.is_file():
+        raise InputError("no such file", args.splats)
+    if args.size < 8 or args.size % 2:
+        raise InputError(f"--size must be an even number >= 8, got {args.size}")
+    if args.output.suffix.lower() != ".exr":
+        raise InputError("the output must be an .exr file name", args.output)
+    settings = settings_from(args)
+    options = {"at": args.at, "size": args.size, "cube": args.cube, "faces": args.faces,
+               "tx": args.tx, "output_space": args.output_space}
+    ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
+                       output=args.output, settings=settings, options=options,
+                       progress=progress_from(args))
+    result = export_hdri_stage(ctx)
+    probes = result.metadata["probes"]
+    text = "\n".join(f"probe at {tuple(p['position'])}: " + ", ".join(p["files"])
+                     for p in probes)
+    emit(args, {**result.metadata, **result.counts}, text)
+    return 0

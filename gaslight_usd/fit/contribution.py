@@ -1,0 +1,34 @@
+"""How much each splat adds to the views: the blend weight it gets, summed over pixels."""
+
+from __future__ import annotations
+
+import torch
+
+from ..cameras import PinholeCamera
+from ..render import SplatParams
+from ..render.project import project
+from ..render.rasterize import rasterize
+
+
+def contributions(params: SplatParams, cameras: list[PinholeCamera], sh_degree: int
+                  ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per splat: summed blend weight (pixel-equivalents) and weight x colour, over views.
+
+    The gradient of the image sum w.r.t. a splat's colour is exactly the sum of
+    its compositing weights, so one backward pass per view gives both.
+    """
+    n = params.count
+    weight = torch.zeros(n)
+    radiance = torch.zeros(n)
+    p = params.detach()
+    for cam in cameras:
+        proj = project(p.means, p.quats, p.log_scales, p.opacity_logits, p.sh, cam,
+                       sh_degree=sh_degree)
+        colours = proj.colours.detach()
+        proj.colours = torch.ones_like(colours, requires_grad=True)
+        image, _ = rasterize(proj, cam.width, cam.height, torch.zeros(3))
+        image[..., 0].sum().backward()
+        w = proj.colours.grad[:, 0]
+        weight.index_add_(0, proj.index, w)
+        radiance.index_add_(0, proj.index, w * colours.mean(1))
+    return weight, radiance

@@ -1,0 +1,152 @@
+"""The fitting data: HDR views matched to posed cameras, checked before any work.
+
+HDR views are ``<photo stem>.exr`` files; each is matched to the posed image of
+the same stem. Missing views, extra posed images without a view, or a view
+whose size differs from its camera fail with one InputError naming the folder
+and what disagrees, before a pixel is read. Views are downscaled by an integer
+factor (box filter) with their intrinsics scaled to match.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cameras import PinholeCamera
+from ..colmap import ColmapModel
+from ..errors import InputError
+from ..imageio import read_header, read_image
+from ..poses import read_poses
+from ..views import hdr_view_paths
+
+
+@dataclass
+class FitData:
+    """Posed HDR views at fitting resolution (linear, float32)."""
+
+    names: list[str]
+    cameras: list[PinholeCamera]
+    images: list[np.ndarray]
+    """(H, W, 3) float32 linear HDR, one per camera."""
+    model: ColmapModel
+    colour_space: str
+    attributes: dict[str, Any] = field(default_factory=dict)
+    """Header facts of the views (exposure scale, method...), from the first view."""
+    downscale: int = 1
+
+    def split(self, holdout_every: int) -> tuple[list[int], list[int]]:
+        """Training and held-out view indices (every ``holdout_every``-th held out)."""
+        n = len(self.cameras)
+        if holdout_every <= 1 or n < 3:
+            return list(range(n)), []
+        held = [i for i in range(n) if i % holdout_every == holdout_every // 2]
+        return [i for i in range(n) if i not in held], held
+
+
+def scale_camera(cam: PinholeCamera, factor: int) -> PinholeCamera:
+    """The camera for an image downscaled by ``factor`` (pixel centres kept at +0.5)."""
+    return PinholeCamera(cam.width // factor, cam.height // factor, cam.fx / factor,
+                         cam.fy / factor, cam.cx / factor, cam.cy / factor, cam.R, cam.t,
+                         name=cam.name)
+
+
+def box_downscale(image: np.ndarray, factor: int) -> np.ndarray:
+    if factor == 1:
+        return image
+    h, w = (image.shape[0] // factor) * factor, (image.shape[1] // factor) * factor
+    c = image.shape[2]
+    return image[:h, :w].reshape(h // factor, factor, w // factor, factor, c).mean(
+        axis=(1, 3)).astype(np.float32)
+
+
+def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, Path]]:
+    """Pair each posed camera with its EXR by stem; InputError on any disagreement."""
+    exrs = {p.stem: p for p in hdr_view_paths(hdr_dir)}
+    posed = {Path(c.name).stem: c for c in model.cameras}
+    missing = sorted(set(posed) - set(exrs))
+    unposed = sorted(set(exrs) - set(posed))
+    if missing:
+        raise InputError(f"{len(missing)} posed image(s) have no HDR view: "
+                         f"{', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
+                         f"(expected <photo stem>.exr)", hdr_dir)
+    if unposed:
+        raise InputError(f"{len(unposed)} HDR view(s) have no pose: "
+                         f"{', '.join(unposed[:5])}{' ...' if len(unposed) > 5 else ''}",
+                         hdr_dir)
+    pairs = []
+    for stem in sorted(posed):
+        cam, path = posed[stem], exrs[stem]
+        spec = read_header(path)
+        if (spec.width, spec.height) != (cam.width, cam.height):
+            raise InputError(f"view is {spec.width}x{spec.height} but its camera "
+                             f"{cam.name!r} is {cam.width}x{cam.height}", path)
+        pairs.append((cam, path))
+    return pairs
+
+
+def check_overlap(cameras: list[PinholeCamera], points: np.ndarray | None = None) -> None:
+    """Fail when some view shares no visible region with any other view.
+
+    Each camera's frustum is sampled on a 5x5 grid of rays at depths spanning
+    the scene (the sparse points' depths when present, else 0.1x to 10x the
+    camera spread); a view overlaps another when some of its samples project
+    inside that view in front of it.
+    """
+    n = len(cameras)
+    if n < 2:
+        raise InputError("fitting needs at least 2 posed HDR views")
+    centres = np.array([c.center for c in cameras])
+    spread = float(np.linalg.norm(centres - centres.mean(0), axis=1).max())
+    if points is not None and len(points) >= 8:
+        d = np.linalg.norm(points - centres.mean(0), axis=1)
+        depths = np.quantile(d, [0.05, 0.25, 0.5, 0.75, 0.95])
+    else:
+        base = max(spread, 1e-3)
+        depths = base * np.geomspace(0.1, 10.0, 7)
+    g = (np.arange(5) + 0.5) / 5
+    samples = []
+    for cam in cameras:
+        px = np.stack(np.meshgrid(g * cam.width, g * cam.height), -1).reshape(-1, 2)
+        rays = np.stack([(px[:, 0] - cam.cx) / cam.fx, (px[:, 1] - cam.cy) / cam.fy,
+                         np.ones(len(px))], -1) @ cam.R
+        samples.append((cam.center + rays[None] * depths[:, None, None]).reshape(-1, 3))
+    lonely = []
+    for i, pts in enumerate(samples):
+        seen = False
+        for j, other in enumerate(cameras):
+            if j == i:
+                continue
+            uv, z = other.project(pts)
+            inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < other.width) & \
+                     (uv[:, 1] >= 0) & (uv[:, 1] < other.height)
+            if inside.any():
+                seen = True
+                break
+        if not seen:
+            lonely.append(cameras[i].name)
+    if lonely:
+        raise InputError(f"view(s) {', '.join(lonely[:5])} overlap no other view: splats "
+                         "cannot be fitted to a region only one photo sees")
+
+
+def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) -> FitData:
+    """Read poses and HDR views, check they agree and overlap, downscale."""
+    hdr_dir = Path(hdr_dir)
+    model = read_poses(poses)
+    pairs = match_views(hdr_dir, model)
+    check_overlap([c for c, _ in pairs], model.points)
+    names, cams, images = [], [], []
+    space, attrs = "", {}
+    for cam, path in pairs:
+        img = read_image(path)
+        if not space:
+            space = img.colour_space
+            attrs = {k: v for k, v in img.metadata.items() if k.startswith("gaslight:")}
+        names.append(Path(cam.name).stem)
+        cams.append(scale_camera(cam, downscale))
+        images.append(box_downscale(np.maximum(img.pixels, 0.0), downscale))
+    return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
+                   attributes=attrs, downscale=downscale)

@@ -1,0 +1,69 @@
+"""Fitting losses and held-out errors.
+
+Training loss (GaSLight, following 3DGS): L1 on the unclamped linear HDR image
+plus ``ssim_weight`` x (1 - SSIM) on both images clamped to [0, 1]; an optional
+``log_weight`` x L1 of log(1 + x) adds a term that sees the dark and the very
+bright regions alike. SSIM is Wang et al. 2004 with the usual 11x11 Gaussian
+window (sigma 1.5), C1 = 0.01^2, C2 = 0.03^2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+SSIM_WINDOW = 11
+SSIM_SIGMA = 1.5
+SSIM_C1 = 0.01 ** 2
+SSIM_C2 = 0.03 ** 2
+
+
+def _gauss_kernel(device) -> torch.Tensor:
+    x = torch.arange(SSIM_WINDOW, dtype=torch.float32, device=device) - SSIM_WINDOW // 2
+    g = torch.exp(-x * x / (2 * SSIM_SIGMA ** 2))
+    return g / g.sum()
+
+
+def _blur(x: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
+    """Separable Gaussian blur of (C, 1, H, W), zero padding (as the 3DGS SSIM)."""
+    pad = SSIM_WINDOW // 2
+    x = F.conv2d(x, g.view(1, 1, 1, -1), padding=(0, pad))
+    return F.conv2d(x, g.view(1, 1, -1, 1), padding=(pad, 0))
+
+
+def ssim(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Mean SSIM of two (H, W, 3) images (values expected in [0, 1])."""
+    g = _gauss_kernel(a.device)
+    x = a.permute(2, 0, 1)[:, None]
+    y = b.permute(2, 0, 1)[:, None]
+    mx, my = _blur(x, g), _blur(y, g)
+    sxx = _blur(x * x, g) - mx * mx
+    syy = _blur(y * y, g) - my * my
+    sxy = _blur(x * y, g) - mx * my
+    num = (2 * mx * my + SSIM_C1) * (2 * sxy + SSIM_C2)
+    den = (mx * mx + my * my + SSIM_C1) * (sxx + syy + SSIM_C2)
+    return (num / den).mean()
+
+
+def fit_loss(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float = 0.2,
+             log_weight: float = 0.0) -> torch.Tensor:
+    """L1(HDR) + ssim_weight (1 - SSIM(clamped)) [+ log_weight L1(log1p)]."""
+    loss = (pred - target).abs().mean()
+    if ssim_weight:
+        loss = loss + ssim_weight * (1.0 - ssim(pred.clamp(0, 1), target.clamp(0, 1)))
+    if log_weight:
+        loss = loss + log_weight * (torch.log1p(pred.clamp_min(0)) -
+                                    torch.log1p(target)).abs().mean()
+    return loss
+
+
+def held_out_errors(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """HDR errors of a rendered view against its photo's HDR view (no exposure alignment).
+
+    ``log_lum_rmse_stops`` and ``pu21_psnr`` from :mod:`gaslight_usd.evaluation`.
+    """
+    from ..evaluation.metrics import log_luminance_rmse, pu21_psnr
+
+    return {"log_lum_rmse_stops": log_luminance_rmse(pred, truth),
+            "pu21_psnr": pu21_psnr(pred, truth, align=False)}

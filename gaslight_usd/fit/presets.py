@@ -1,0 +1,73 @@
+"""Fitting presets: how hard to try. ``fast`` is what the README example uses."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    downscale: int = 2
+    """Integer factor the views are shrunk by before fitting."""
+    iterations: int = 2000
+    budget: int = 100_000
+    """Most splats kept."""
+    init_points: int = 20_000
+    max_sh_degree: int = 3
+    sh_raise_every: int = 500
+    """Steps between raising the active SH degree by one."""
+    densify_from: float = 0.1
+    densify_until: float = 0.6
+    """Densification window as fractions of the iterations."""
+    densify_every: int = 100
+    grad_threshold: float = 0.0002
+    """Mean view-space (NDC) gradient over which a splat is cloned or split."""
+    percent_dense: float = 0.01
+    min_opacity: float = 0.005
+    max_scale: float = 0.5
+    """Splats larger than this fraction of the scene extent are pruned."""
+    min_improvement: float = 0.005
+    """Relative held-out improvement under which a densification round counts as idle."""
+    patience: int = 2
+    """Idle densification rounds in a row after which no more splats are added."""
+    target_error: float = 0.0
+    """Stop once the held-out log-luminance RMSE (stops) is below this (0: never)."""
+    holdout_every: int = 8
+    ssim_weight: float = 0.2
+    log_weight: float = 0.0
+    lr_means: float = 1.6e-4
+    lr_means_final: float = 1.6e-6
+    lr_scales: float = 5e-3
+    lr_quats: float = 1e-3
+    lr_opacity: float = 5e-2
+    lr_colour: float = 1e-2
+    lr_sh: float = 2.5e-3
+    init_opacity: float = 0.1
+    checkpoint_every: int = 200
+    background: float = 0.0
+    """Radiance behind the splats (0: a closed set such as a room)."""
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def updated(self, **changes: Any) -> FitConfig:
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+
+PRESETS: dict[str, FitConfig] = {
+    "fast": FitConfig(downscale=4, iterations=300, budget=12_000, init_points=4_000,
+                      max_sh_degree=1, sh_raise_every=150, densify_every=40,
+                      lr_means=4e-4, lr_colour=2e-2, lr_opacity=5e-2, checkpoint_every=100),
+    "balanced": FitConfig(downscale=2, iterations=2500, budget=100_000, init_points=20_000,
+                          max_sh_degree=2, sh_raise_every=600),
+    "best": FitConfig(downscale=1, iterations=6000, budget=300_000, init_points=40_000,
+                      max_sh_degree=3, sh_raise_every=1000, densify_until=0.5,
+                      checkpoint_every=500),
+}
+
+
+def preset(name: str) -> FitConfig:
+    if name not in PRESETS:
+        raise KeyError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    return PRESETS[name]

@@ -1,0 +1,158 @@
+"""Environment maps rendered from a point: cube faces and lat-long panoramas.
+
+Cube maps follow OpenEXR's ``envmap=cube`` (ImfEnvmap.cpp, CubeMap::direction
+and pixelPosition): six square faces stacked vertically in the order
++X, -X, +Y, -Y, +Z, -Z. Within a face, OpenEXR puts the first and last pixel
+centres exactly on the cube's edges (position / (size - 1) * 2 - 1), so each
+face is a pinhole camera with f = (size - 1) / 2 and principal point size / 2
+(pixel centres at +0.5): a field of view a little over 90 degrees. Per face
+(image right, image down, view direction) in the world frame:
+
+    +X: (+Z, -Y, +X)   -X: (-Z, -Y, -X)   +Y: (+X, -Z, +Y)
+    -Y: (+X, +Z, -Y)   +Z: (-X, -Y, +Z)   -Z: (+X, -Y, -Z)
+
+Lat-long panoramas follow :mod:`gaslight_usd.cameras` (OpenEXR envmap=latlong)
+and are resampled bilinearly from cube faces rendered at a size that does not
+under-sample them (face size >= width / pi + 2).
+
+Splats whose centre lies behind a face, or nearer to the probe than ``near``
+along the face's axis, are skipped by that face (a splat is never clipped in
+part). So a probe placed inside a splat does not see that splat, and a splat
+right next to the probe (closer than ``near``) is left out rather than
+smeared over the whole sphere by the projection's linearisation. Splats far
+off a face's axis are drawn by the face that sees them best; near face seams
+their footprint comes from the clamped EWA Jacobian (as in 3DGS), so large
+splats close to the probe may show small seams.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from ..cameras import PinholeCamera, direction_to_latlong, latlong_directions
+from ..splats import SplatScene
+from . import SplatParams, render
+
+CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
+PROBE_NEAR = 1e-3
+
+_X, _Y, _Z = np.eye(3)
+FACE_AXES = {
+    "+X": (_Z, -_Y, _X),
+    "-X": (-_Z, -_Y, -_X),
+    "+Y": (_X, -_Z, _Y),
+    "-Y": (_X, _Z, -_Y),
+    "+Z": (-_X, -_Y, _Z),
+    "-Z": (_X, -_Y, -_Z),
+}
+"""Face -> (image right, image down, view direction) as world unit vectors."""
+
+
+def cube_face_cameras(position, size: int) -> list[PinholeCamera]:
+    """Six pinhole cameras at ``position`` (3,), one per face in CUBE_FACES order."""
+    if size < 2:
+        raise ValueError(f"cube face size must be at least 2, got {size}")
+    pos = np.asarray(position, np.float64).reshape(3)
+    f = (size - 1) / 2.0
+    cams = []
+    for name in CUBE_FACES:
+        R = np.stack(FACE_AXES[name])
+        cams.append(PinholeCamera(size, size, f, f, size / 2.0, size / 2.0, R, -R @ pos,
+                                  name=name))
+    return cams
+
+
+def _params(scene: SplatScene | SplatParams, device: str) -> SplatParams:
+    if isinstance(scene, SplatParams):
+        return scene.detach().to(device)
+    return SplatParams.from_scene(scene, device=device)
+
+
+def render_cube(scene: SplatScene | SplatParams, position, size: int, device: str = "cpu",
+                near: float = PROBE_NEAR) -> np.ndarray:
+    """Cube map (6, size, size, 3) float32 linear HDR seen from ``position``."""
+    params = _params(scene, device)
+    faces = []
+    with torch.no_grad():
+        for cam in cube_face_cameras(position, size):
+            faces.append(render(params, cam, background=0.0, near=near).image.cpu().numpy())
+    return np.stack(faces).astype(np.float32)
+
+
+def latlong_face_size(width: int) -> int:
+    """Cube face size whose centre pixels are no wider than the lat-long's."""
+    return int(math.ceil(width / math.pi)) + 2
+
+
+def render_latlong(scene: SplatScene | SplatParams, position, width: int,
+                   device: str = "cpu", near: float = PROBE_NEAR) -> np.ndarray:
+    """Lat-long panorama (width // 2, width, 3) float32 linear HDR from ``position``."""
+    faces = render_cube(scene, position, latlong_face_size(width), device=device, near=near)
+    return cube_to_latlong(faces, width)
+
+
+def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray, wrap_x: bool) -> np.ndarray:
+    """Sample (H, W, C) at continuous pixel coordinates (centres at +0.5)."""
+    h, w = image.shape[:2]
+    fx, fy = x - 0.5, np.clip(y - 0.5, 0.0, h - 1)
+    if not wrap_x:
+        fx = np.clip(fx, 0.0, w - 1)
+    x0, y0 = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+    ax, ay = (fx - x0)[..., None], (fy - y0)[..., None]
+    y1 = np.minimum(y0 + 1, h - 1)
+    if wrap_x:
+        x0, x1 = x0 % w, (x0 + 1) % w
+    else:
+        x1 = np.minimum(x0 + 1, w - 1)
+    top = image[y0, x0] * (1 - ax) + image[y0, x1] * ax
+    bottom = image[y1, x0] * (1 - ax) + image[y1, x1] * ax
+    return (top * (1 - ay) + bottom * ay).astype(np.float32)
+
+
+def _face_lookup(directions: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Directions (..., 3) -> face index and continuous pixel coordinates in that face."""
+    d = np.asarray(directions, np.float64)
+    axis = np.argmax(np.abs(d), axis=-1)
+    sign_neg = np.take_along_axis(d, axis[..., None], -1)[..., 0] < 0
+    face = axis * 2 + sign_neg
+    axes = np.stack([np.stack(FACE_AXES[n]) for n in CUBE_FACES])  # (6, 3, 3)
+    basis = axes[face]  # (..., 3, 3): right, down, forward
+    local = np.einsum("...ij,...j->...i", basis, d)
+    f, c = (size - 1) / 2.0, size / 2.0
+    x = f * local[..., 0] / local[..., 2] + c
+    y = f * local[..., 1] / local[..., 2] + c
+    return face, x, y
+
+
+def cube_to_latlong(faces: np.ndarray, width: int) -> np.ndarray:
+    """Resample a cube map (6, S, S, C) to a lat-long panorama (width // 2, width, C)."""
+    faces = np.asarray(faces, np.float32)
+    if faces.ndim != 4 or faces.shape[0] != 6 or faces.shape[1] != faces.shape[2]:
+        raise ValueError(f"expected cube faces (6, S, S, C), got {faces.shape}")
+    size = faces.shape[1]
+    dirs = latlong_directions(width, width // 2)
+    face, x, y = _face_lookup(dirs, size)
+    # Sample all faces stacked vertically: face k occupies rows k*S .. (k+1)*S.
+    x = np.clip(x, 0.5, size - 0.5)
+    y = np.clip(y, 0.5, size - 0.5) + face * size
+    stacked = faces.reshape(6 * size, size, -1)
+    return _bilinear(stacked, x, y, wrap_x=False)
+
+
+def latlong_to_cube(image: np.ndarray, size: int) -> np.ndarray:
+    """Resample a lat-long panorama (H, W, C) to cube faces (6, size, size, C)."""
+    image = np.asarray(image, np.float32)
+    h, w = image.shape[:2]
+    out = []
+    for cam in cube_face_cameras(np.zeros(3), size):
+        xy = direction_to_latlong(cam.ray_directions(), w, h)
+        out.append(_bilinear(image, xy[..., 0], xy[..., 1], wrap_x=True))
+    return np.stack(out)
+
+
+def stack_cube(faces: np.ndarray) -> np.ndarray:
+    """(6, S, S, C) -> (6 S, S, C): the OpenEXR envmap=cube image layout."""
+    return np.asarray(faces).reshape(-1, *faces.shape[2:])

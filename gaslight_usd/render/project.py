@@ -1,0 +1,109 @@
+"""EWA splatting: 3D Gaussians -> 2D screen-space Gaussians (Zwicker et al. 2002,
+"EWA Splatting"; the 3DGS formulation, Kerbl et al. 2023).
+
+Sigma3 = R S S^T R^T from scale and rotation; Sigma2 = J W Sigma3 W^T J^T + 0.3 I,
+with J the Jacobian of the pinhole projection at the splat centre (its x/z and
+y/z clamped to 1.3x the field of view, as 3DGS does, so splats far outside the
+frame do not blow up) and the 0.3 px^2 low-pass dilation of 3DGS.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from ..cameras import PinholeCamera
+from .sh import eval_sh
+
+ALPHA_MIN = 1.0 / 255.0
+ALPHA_MAX = 0.99
+T_MIN = 1e-4
+DILATION = 0.3
+DEFAULT_NEAR = 0.01
+"""Splats whose centre is nearer than this (camera z, scene units) are skipped."""
+
+
+@dataclass
+class Projected:
+    """Screen-space splats that may be visible (M of the N input splats).
+
+    - ``index``     (M,) index into the input splats
+    - ``means2d``   (M, 2) pixel coordinates (pixel centres at +0.5)
+    - ``conics``    (M, 3) inverse 2D covariance (a, b, c) = [[a, b], [b, c]]
+    - ``depths``    (M,) camera z
+    - ``colours``   (M, 3) linear colour seen from this camera
+    - ``opacities`` (M,) in (0, 1)
+    - ``extents``   (M, 2) half-width, half-height (px) outside which alpha < 1/255
+    """
+
+    index: torch.Tensor
+    means2d: torch.Tensor
+    conics: torch.Tensor
+    depths: torch.Tensor
+    colours: torch.Tensor
+    opacities: torch.Tensor
+    extents: torch.Tensor
+
+
+def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
+    """(N, 4) w x y z (any norm) -> (N, 3, 3)."""
+    q = quats / quats.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    w, x, y, z = q.unbind(-1)
+    return torch.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ], dim=-1).reshape(-1, 3, 3)
+
+
+def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
+            opacity_logits: torch.Tensor, sh: torch.Tensor, camera: PinholeCamera,
+            sh_degree: int | None = None, near: float = DEFAULT_NEAR) -> Projected:
+    """Project N splats into ``camera``; drop those behind it or surely off-screen."""
+    dev, dt = means.device, means.dtype
+    R = torch.as_tensor(camera.R, dtype=dt, device=dev)
+    t = torch.as_tensor(camera.t, dtype=dt, device=dev)
+    with torch.no_grad():
+        z_all = means @ R[2] + t[2]
+        keep = z_all > near
+    index = torch.nonzero(keep).squeeze(1)
+    m = means[index]
+    cam = m @ R.T + t
+    x, y, z = cam.unbind(-1)
+    fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
+    inv_z = 1.0 / z
+    u = fx * x * inv_z + cx
+    v = fy * y * inv_z + cy
+    lim_x = 1.3 * max(cx, camera.width - cx) / fx
+    lim_y = 1.3 * max(cy, camera.height - cy) / fy
+    tx = (x * inv_z).clamp(-lim_x, lim_x) * z
+    ty = (y * inv_z).clamp(-lim_y, lim_y) * z
+    zeros = torch.zeros_like(z)
+    J = torch.stack([fx * inv_z, zeros, -fx * tx * inv_z * inv_z,
+                     zeros, fy * inv_z, -fy * ty * inv_z * inv_z], -1).reshape(-1, 2, 3)
+    rot = quat_to_rotmat(quats[index])
+    M = rot * torch.exp(log_scales[index])[:, None, :]  # R S
+    T = J @ R[None] @ M  # (M, 2, 3)
+    cov = T @ T.transpose(1, 2)
+    a = cov[:, 0, 0] + DILATION
+    b = cov[:, 0, 1]
+    c = cov[:, 1, 1] + DILATION
+    det = (a * c - b * b).clamp_min(1e-12)
+    conics = torch.stack([c / det, -b / det, a / det], -1)
+    opac = torch.sigmoid(opacity_logits[index])
+    with torch.no_grad():
+        # Mahalanobis level where opacity * exp(-0.5 k) falls to 1/255.
+        level = 2.0 * torch.log((opac * 255.0).clamp_min(1.0))
+        ext = torch.stack([torch.sqrt(level * a), torch.sqrt(level * c)], -1) + 1e-3
+        visible = ((opac > ALPHA_MIN) & (u + ext[:, 0] > 0) & (u - ext[:, 0] < camera.width)
+                   & (v + ext[:, 1] > 0) & (v - ext[:, 1] < camera.height))
+        sel = torch.nonzero(visible).squeeze(1)
+    center = torch.as_tensor(camera.center, dtype=dt, device=dev)
+    dirs = m[sel] - center
+    dirs = dirs / dirs.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    colours = eval_sh(sh[index[sel]], dirs, sh_degree)
+    return Projected(index=index[sel], means2d=torch.stack([u, v], -1)[sel],
+                     conics=conics[sel], depths=z[sel], colours=colours,
+                     opacities=opac[sel], extents=ext[sel])
+

@@ -1,0 +1,183 @@
+"""The light rig: a DomeLight rendered at a probe point plus a few SphereLights.
+
+- Emitters (radiance > threshold, as for the instancer) are clustered in
+  space (k-means); each cluster becomes one ``UsdLux.SphereLight`` at its
+  power-weighted centre, radius its spatial spread (at least its splats' size).
+- The ``DomeLight`` (OpenEXR lat-long convention, +Y pole: the original
+  DomeLight schema) holds the panorama of every *other* splat rendered at the
+  probe, so lamps are not counted twice.
+- Each light's power is measured, not guessed: the emitters' share of the
+  probe's panorama (full render minus the dome's) is split by direction among
+  the clusters, giving each cluster's irradiance at the probe; radiant
+  intensity = that x distance^2, radiance = intensity / (pi r^2), written as
+  ``inputs:intensity`` (max channel) x ``inputs:color`` in the working space.
+- The rig's error is the irradiance error at the probe over 26 surface
+  normals, relative to the largest reference irradiance:
+  ``max_n |E_dome(n) + sum_lights E_l(n) - E_full(n)| / max_n E_full(n)``
+  (luminance). Lights are added (1, 2, 3, ...) until it is within tolerance.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pxr import Gf, Sdf, Usd, UsdLux
+
+from .. import colour
+from ..cameras import latlong_directions, latlong_solid_angles
+from ..hdri import write_latlong
+from ..splats import SplatScene
+from .instancer import DEFAULT_THRESHOLD, emitter_mask
+from .palette import kmeans
+
+MAX_LIGHTS = 16
+EVAL_WIDTH = 256
+"""Lat-long width the reference irradiance is measured at (it is a smooth integral)."""
+
+
+def normals_26() -> np.ndarray:
+    """Unit normals: the 6 faces, 12 edges and 8 corners of a cube."""
+    g = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), -1)
+    g = g.reshape(-1, 3).astype(np.float64)
+    g = g[np.abs(g).sum(1) > 0]
+    return g / np.linalg.norm(g, axis=1, keepdims=True)
+
+
+def irradiance(pano: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(M, 3) RGB irradiance of a lat-long panorama on surfaces facing ``normals``."""
+    h, w = pano.shape[:2]
+    dirs = latlong_directions(w, h).reshape(-1, 3)
+    d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w)).reshape(-1)
+    cos = np.clip(dirs @ normals.T, 0.0, None) * d_omega[:, None]  # (P, M)
+    return cos.T @ pano.reshape(-1, 3).astype(np.float64)
+
+
+def _cluster_lights(scene: SplatScene, probe: np.ndarray, k: int, seed: int,
+                    emitted: np.ndarray, dirs: np.ndarray, d_omega: np.ndarray
+                    ) -> dict[str, np.ndarray]:
+    """k sphere lights for the emitter splats in ``scene``; powers from ``emitted``."""
+    pos = scene.positions.astype(np.float64)
+    centres = kmeans(pos, k, seed)
+    labels = np.argmin(((pos[:, None] - centres[None]) ** 2).sum(-1), axis=1)
+    k = centres.shape[0]
+    weight = (scene.base_colours.max(1) * scene.opacities *
+              np.prod(scene.scales, axis=1) ** (2 / 3)).astype(np.float64) + 1e-12
+    wsum = np.bincount(labels, weight, minlength=k)
+    used = wsum > 0
+    centre = np.stack([np.bincount(labels, weight * pos[:, i], minlength=k)
+                       for i in range(3)], 1) / np.maximum(wsum, 1e-30)[:, None]
+    spread2 = np.bincount(labels, weight * ((pos - centre[labels]) ** 2).sum(1),
+                          minlength=k) / np.maximum(wsum, 1e-30)
+    size2 = np.bincount(labels, weight * (scene.scales.astype(np.float64) ** 2).mean(1),
+                        minlength=k) / np.maximum(wsum, 1e-30)
+    radius = np.sqrt(np.maximum(spread2, size2))
+    to_light = centre - probe
+    dist = np.maximum(np.linalg.norm(to_light, axis=1), 1e-9)
+    omega = to_light / dist[:, None]
+    # Split the emitters' share of the panorama among clusters by direction.
+    owner = np.argmax(dirs @ omega[used].T, axis=1)
+    flux = np.stack([np.bincount(owner, emitted[:, c] * d_omega, minlength=int(used.sum()))
+                     for c in range(3)], 1)
+    flux = np.maximum(flux, 0.0)  # irradiance normal to each light's direction
+    intensity = flux * dist[used, None] ** 2
+    radiance = intensity / (np.pi * radius[used, None] ** 2)
+    order = np.argsort(-flux.sum(1))
+    return {"position": centre[used][order], "radius": radius[used][order],
+            "radiance": radiance[order], "flux": flux[order], "direction": omega[used][order],
+            "members": np.bincount(labels, minlength=k)[used][order]}
+
+
+def _lights_irradiance(lights: dict[str, np.ndarray], normals: np.ndarray) -> np.ndarray:
+    cos = np.clip(lights["direction"] @ normals.T, 0.0, None)  # (L, M)
+    return cos.T @ lights["flux"]
+
+
+def fit_rig(scene: SplatScene, probe: np.ndarray, dome_pano: np.ndarray, full_pano: np.ndarray,
+            mask: np.ndarray, tolerance: float, working_space: str,
+            ocio_config: str | None, max_lights: int = MAX_LIGHTS, seed: int = 0
+            ) -> tuple[dict[str, np.ndarray] | None, dict]:
+    """Fewest lights whose irradiance error at ``probe`` is within ``tolerance``."""
+    lum = colour.luminance_weights(working_space, ocio_config).astype(np.float64)
+    normals = normals_26()
+    e_full = irradiance(full_pano, normals) @ lum
+    e_dome = irradiance(dome_pano, normals) @ lum
+    scale = max(float(e_full.max()), 1e-12)
+    dome_error = float(np.abs(e_dome - e_full).max() / scale)
+    metrics = {"lights": 0, "irradiance_error": dome_error, "dome_only_error": dome_error,
+               "tolerance": tolerance, "met": dome_error <= tolerance}
+    emitters = scene.subset(mask)
+    if emitters.count == 0:
+        return None, metrics
+    h, w = full_pano.shape[:2]
+    dirs = latlong_directions(w, h).reshape(-1, 3)
+    d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w)).reshape(-1)
+    dome_small = _downsample(dome_pano, w)
+    emitted = (full_pano - dome_small).reshape(-1, 3).astype(np.float64)
+    best, best_err = None, np.inf
+    for k in range(1, min(max_lights, emitters.count) + 1):
+        lights = _cluster_lights(emitters, probe, k, seed, emitted, dirs, d_omega)
+        err = float(np.abs(e_dome + _lights_irradiance(lights, normals) @ lum - e_full).max()
+                    / scale)
+        if err < best_err:
+            best, best_err = lights, err
+        if err <= tolerance:
+            break
+    metrics.update(lights=len(best["radius"]), irradiance_error=best_err,
+                   met=best_err <= tolerance)
+    return best, metrics
+
+
+def _downsample(pano: np.ndarray, width: int) -> np.ndarray:
+    """Box-filter a lat-long panorama to ``width`` (an integer factor of its width)."""
+    h, w = pano.shape[:2]
+    f = w // width
+    if f <= 1:
+        return pano
+    return pano[: (h // f) * f, : width * f].reshape(h // f, f, width, f, 3).mean((1, 3))
+
+
+def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
+              dome_name: str, probe=None, width: int = 1024,
+              tolerance: float = 0.05, threshold: float = DEFAULT_THRESHOLD,
+              working_space: str = colour.DEFAULT_WORKING_SPACE,
+              ocio_config: str | None = None, seed: int = 0,
+              max_lights: int = MAX_LIGHTS) -> dict:
+    """Author ``<root>/Dome`` and ``<root>/Light_NNN``; write the dome EXR in ``folder``."""
+    from ..render.envmap import render_latlong
+
+    if probe is None:
+        lo, hi = scene.bounds()
+        probe = (lo + hi) / 2
+    probe = np.asarray(probe, np.float64).reshape(3)
+    mask = emitter_mask(scene, threshold)
+    eval_width = min(EVAL_WIDTH, width)
+    width = max(eval_width, (width // eval_width) * eval_width)
+    dome_pano = render_latlong(scene.subset(~mask), probe, width)
+    full_pano = render_latlong(scene, probe, eval_width) if mask.any() else _downsample(
+        dome_pano, eval_width)
+    lights, metrics = fit_rig(scene, probe, dome_pano, full_pano, mask, tolerance,
+                              working_space, ocio_config, max_lights, seed)
+    space = colour.resolve_space(working_space, ocio_config)
+    write_latlong(folder / dome_name, dome_pano, probe, space, None, ocio_config,
+                  {"gaslight:content": "splats other than the rig's SphereLights"})
+    dome = UsdLux.DomeLight.Define(stage, root.AppendChild("Dome"))
+    dome.CreateTextureFileAttr(Sdf.AssetPath(f"./{dome_name}"))
+    dome.CreateTextureFormatAttr(UsdLux.Tokens.latlong)
+    dome.CreateIntensityAttr(1.0)
+    dome.CreateColorAttr(Gf.Vec3f(1.0, 1.0, 1.0))
+    dome.GetPrim().SetCustomDataByKey("gaslight:probePosition", Gf.Vec3d(*probe))
+    count = 0 if lights is None else len(lights["radius"])
+    for i in range(count):
+        rad = lights["radiance"][i]
+        peak = float(rad.max())
+        light = UsdLux.SphereLight.Define(stage, root.AppendChild(f"Light_{i:03d}"))
+        light.CreateRadiusAttr(float(lights["radius"][i]))
+        light.CreateIntensityAttr(peak)
+        light.CreateColorAttr(Gf.Vec3f(*(float(c) for c in rad / max(peak, 1e-30))))
+        light.CreateNormalizeAttr(False)
+        light.AddTranslateOp().Set(Gf.Vec3d(*lights["position"][i]))
+        light.GetPrim().SetCustomDataByKey("gaslight:splats", int(lights["members"][i]))
+    metrics.update(probe=[float(v) for v in probe], emitters=int(mask.sum()),
+                   dome_width=width, files=[dome_name])
+    return metrics

@@ -1,0 +1,222 @@
+"""The exported scene: one root layer, one choice of lighting.
+
+``scene.usda`` holds the default prim ``/Scene`` with a variant set
+``lighting`` whose variants reference ``.usdc`` layers written beside it:
+
+=============  ====================================  ===============================
+variant        prim under /Scene                     layer(s)
+=============  ====================================  ===============================
+particlefield  ``Splats`` (Xform, ``Part_000``...)    ``<stem>.particlefield[.NNN].usdc``
+instancer      ``Emitters`` (Xform + PointInstancer)  ``<stem>.instancer.usdc``
+rig            ``Rig`` (DomeLight + SphereLights)     ``<stem>.rig.usdc`` + dome EXR
+=============  ====================================  ===============================
+
+Each layer opens on its own too (units, up axis, colour space, provenance on
+its default prim). Files are written into a hidden temporary folder and moved
+into place with the root layer last, so a failed run leaves no root layer.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import shutil
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from .. import colour
+from ..errors import InputError
+from ..splats import SplatScene
+from . import instancer as inst
+from .particlefield import MAX_LAYER_BYTES, bytes_per_splat, chunk_ranges, write_particle_field
+from .stage import Provenance, StageFrame, new_stage, tag_layer_root
+from .validate import Finding, validate
+
+VARIANTS = ("particlefield", "instancer", "rig")
+VARIANT_SET = "lighting"
+ROOT_PRIM = "Scene"
+_CHILD = {"particlefield": "Splats", "instancer": "Emitters", "rig": "Rig"}
+
+
+@dataclass
+class ExportOptions:
+    variants: tuple[str, ...] = VARIANTS
+    half: bool = False
+    emit_threshold: float = inst.DEFAULT_THRESHOLD
+    palette_tolerance: float = inst.DEFAULT_TOLERANCE
+    non_emitters: str = "drop"
+    rig_tolerance: float = 0.05
+    probe: tuple[float, float, float] | None = None
+    dome_width: int = 1024
+    max_layer_bytes: int = MAX_LAYER_BYTES
+    working_space: str = colour.DEFAULT_WORKING_SPACE
+    ocio_config: str | None = None
+    seed: int = 0
+
+
+@dataclass
+class ExportReport:
+    root: Path
+    files: list[Path] = field(default_factory=list)
+    metrics: dict[str, Any] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+    findings: list[Finding] = field(default_factory=list)
+
+    @property
+    def errors(self) -> list[Finding]:
+        return [f for f in self.findings if f.severity == "error"]
+
+
+def _layer_names(stem: str, variant: str, parts: int) -> list[str]:
+    if variant == "particlefield" and parts > 1:
+        return [f"{stem}.{variant}.{i:03d}.usdc" for i in range(parts)]
+    return [f"{stem}.{variant}.usdc"]
+
+
+def _write_particlefield(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
+                         prov: Provenance, opts: ExportOptions) -> tuple[list[str], dict]:
+    ranges = chunk_ranges(scene.count, bytes_per_splat(scene.sh.shape[1], opts.half),
+                          opts.max_layer_bytes)
+    names = _layer_names(stem, "particlefield", len(ranges))
+    for name, (start, stop) in zip(names, ranges, strict=True):
+        stage = Usd.Stage.CreateNew(str(folder / name))
+        part = scene if (start, stop) == (0, scene.count) else scene.subset(np.arange(start, stop))
+        _stage_frame(stage, frame)
+        field_ = write_particle_field(stage, "/Splats", part, half=opts.half)
+        stage.SetDefaultPrim(field_.GetPrim())
+        tag_layer_root(field_.GetPrim(), prov, opts.ocio_config)
+        stage.GetRootLayer().Save()
+    return names, {"splats": scene.count, "layers": len(names), "half": opts.half}
+
+
+def _stage_frame(stage: Usd.Stage, frame: StageFrame) -> None:
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if frame.up_axis == "Y" else UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, frame.meters_per_unit)
+
+
+def _write_instancer(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
+                     prov: Provenance, opts: ExportOptions) -> tuple[list[str], dict]:
+    name = _layer_names(stem, "instancer", 1)[0]
+    stage, root = new_stage(folder / name, frame, "Emitters", "Xform")
+    tag_layer_root(root, prov, opts.ocio_config)
+    report = inst.write_instancer(stage, root.GetPath(), scene, opts.emit_threshold,
+                                  opts.palette_tolerance, opts.non_emitters, seed=opts.seed)
+    stage.GetRootLayer().Save()
+    metrics = {"emitters": report.emitters, "diffuse": report.diffuse,
+               "dropped": report.dropped, "threshold": opts.emit_threshold,
+               "measure": "max channel of base colour",
+               "palette_tolerance_p95_relative": opts.palette_tolerance, **report.palette}
+    if report.diffuse_palette:
+        metrics["diffuse_palette"] = report.diffuse_palette
+    return [name], metrics
+
+
+def _write_rig(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
+               prov: Provenance, opts: ExportOptions) -> tuple[list[str], dict]:
+    from .rig import write_rig  # needs the splat renderer
+
+    name = _layer_names(stem, "rig", 1)[0]
+    stage, root = new_stage(folder / name, frame, "Rig", "Xform")
+    tag_layer_root(root, prov, opts.ocio_config)
+    result = write_rig(stage, root.GetPath(), scene, folder, f"{stem}.dome.exr",
+                       probe=opts.probe, width=opts.dome_width,
+                       tolerance=opts.rig_tolerance, threshold=opts.emit_threshold,
+                       working_space=opts.working_space, ocio_config=opts.ocio_config,
+                       seed=opts.seed)
+    stage.GetRootLayer().Save()
+    return [name, *result.pop("files")], result
+
+
+WRITERS = {"particlefield": _write_particlefield, "instancer": _write_instancer,
+           "rig": _write_rig}
+
+
+def _write_root(path: Path, stem: str, layers: dict[str, list[str]], frame: StageFrame,
+                prov: Provenance, opts: ExportOptions) -> None:
+    stage, root = new_stage(path, frame, ROOT_PRIM, "Xform", kind="assembly")
+    tag_layer_root(root, prov, opts.ocio_config)
+    vset = root.GetVariantSets().AddVariantSet(VARIANT_SET)
+    for variant, names in layers.items():
+        vset.AddVariant(variant)
+        vset.SetVariantSelection(variant)
+        with vset.GetVariantEditContext():
+            child = root.GetPath().AppendChild(_CHILD[variant])
+            usd_files = [n for n in names if n.endswith(".usdc")]
+            if len(usd_files) == 1:
+                # typeless: the referenced default prim brings its own type
+                stage.DefinePrim(child).GetReferences().AddReference(f"./{usd_files[0]}")
+            else:
+                UsdGeom.Xform.Define(stage, child)
+                for i, n in enumerate(usd_files):
+                    part = stage.DefinePrim(child.AppendChild(f"Part_{i:03d}"))
+                    part.GetReferences().AddReference(f"./{n}")
+    vset.SetVariantSelection(next(iter(layers)))
+    stage.GetRootLayer().Save()
+
+
+def export_usd(scene: SplatScene, out_path: str | Path, opts: ExportOptions | None = None,
+               source: str = "", validate_output: bool = True) -> ExportReport:
+    """Write ``out_path`` (``.usda``/``.usd``) and its layers; return what was done."""
+    opts = opts or ExportOptions()
+    out_path = Path(out_path)
+    if out_path.suffix.lower() not in (".usda", ".usd", ".usdc"):
+        raise InputError("the root layer must be .usda, .usd or .usdc (use --usdz for a "
+                         "package)", out_path)
+    unknown = [v for v in opts.variants if v not in VARIANTS]
+    if unknown or not opts.variants:
+        raise InputError(f"unknown export form(s) {unknown}; choose from {', '.join(VARIANTS)}")
+    frame = StageFrame.from_metadata(scene.metadata)
+    prov = Provenance.from_metadata(scene.metadata, source=source,
+                                    working_space=colour.resolve_space(
+                                        opts.working_space, opts.ocio_config),
+                                    ocio_config=opts.ocio_config)
+    prov.notes = "; ".join(frame.assumed)
+    stem = out_path.name[: -len(out_path.suffix)]
+    folder = out_path.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    scratch = folder / f".{stem}.partial-{secrets.token_hex(4)}"
+    scratch.mkdir()
+    report = ExportReport(root=out_path)
+    try:
+        layers: dict[str, list[str]] = {}
+        for variant in VARIANTS:
+            if variant not in opts.variants:
+                continue
+            t0 = time.perf_counter()
+            names, metrics = WRITERS[variant](scratch, stem, scene, frame, prov, opts)
+            report.seconds[variant] = round(time.perf_counter() - t0, 4)
+            layers[variant] = names
+            report.metrics[variant] = metrics
+        _write_root(scratch / out_path.name, stem, layers, frame, prov, opts)
+        moved = [n for names in layers.values() for n in names] + [out_path.name]
+        for name in moved:  # root layer last
+            os.replace(scratch / name, folder / name)
+            report.files.append(folder / name)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    report.metrics["stage"] = {"upAxis": frame.up_axis, "metersPerUnit": frame.meters_per_unit,
+                               "assumed": frame.assumed,
+                               "colourSpace": prov.working_space}
+    if validate_output:
+        for path in report.files:
+            if path.suffix in (".usda", ".usdc", ".usd"):
+                report.findings += validate(path)
+    return report
+
+
+def open_variant(root: str | Path, variant: str) -> Usd.Stage:
+    """Open ``root`` with the ``lighting`` variant set to ``variant``."""
+    stage = Usd.Stage.Open(str(root))
+    stage.GetDefaultPrim().GetVariantSet(VARIANT_SET).SetVariantSelection(variant)
+    return stage
+
+
+def probe_default(scene: SplatScene) -> np.ndarray:
+    """The default probe point: the centre of the splats' bounding box."""
+    lo, hi = scene.bounds()
+    return ((lo + hi) / 2).astype(np.float64)

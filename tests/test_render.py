@@ -1,0 +1,210 @@
+"""The splat renderer against hand-computed cases, its dense reference, and
+OpenEXR's cube-map convention."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import torch
+
+from gaslight_usd.cameras import PinholeCamera, latlong_directions
+from gaslight_usd.imageio import read_image, write_exr
+from gaslight_usd.render import SplatParams, render, render_reference
+from gaslight_usd.render.envmap import (
+    CUBE_FACES,
+    cube_face_cameras,
+    cube_to_latlong,
+    latlong_to_cube,
+    render_cube,
+    render_latlong,
+)
+from gaslight_usd.render.sh import C0, C1, eval_sh
+from gaslight_usd.splats import SplatScene
+
+
+def camera(size=65, f=100.0, R=None, t=None) -> PinholeCamera:
+    return PinholeCamera(size, size, f, f, size / 2, size / 2,
+                         np.eye(3) if R is None else R, np.zeros(3) if t is None else t)
+
+
+def one_splat(pos, colour, scale, opacity, sh_degree=0) -> SplatScene:
+    return SplatScene.from_activated(np.array([pos], float), np.array([colour], float),
+                                     np.array([[scale] * 3]), np.array([opacity]),
+                                     sh_degree=sh_degree)
+
+
+def random_scene(n, rng, sh_degree=3) -> SplatScene:
+    s = SplatScene.from_activated(rng.uniform([-1, -1, 2], [1, 1, 4], (n, 3)),
+                                  rng.uniform(0, 3, (n, 3)), rng.uniform(0.01, 0.1, (n, 3)),
+                                  rng.uniform(0.05, 0.99, n), rotations=rng.normal(size=(n, 4)),
+                                  sh_degree=sh_degree)
+    s.sh[:, 1:] = rng.normal(0, 0.2, s.sh[:, 1:].shape)
+    return s
+
+
+def test_isotropic_gaussian_peak_and_width():
+    # Splat on the optical axis at z=5, std 0.05 -> 1 px at f=100, plus the 0.3 px^2 dilation.
+    scene = one_splat([0, 0, 5], [4.0, 2.0, 1.0], 0.05, 0.5)
+    out = render(scene, camera())
+    img = out.image.numpy()
+    # Pixel (32, 32) has its centre at 32.5 = cx: the peak, alpha = opacity.
+    np.testing.assert_allclose(img[32, 32], [2.0, 1.0, 0.5], rtol=1e-5)
+    var = 1.0 + 0.3
+    for k in (1, 2, 3):
+        expect = 0.5 * np.exp(-0.5 * k * k / var)
+        np.testing.assert_allclose(out.alpha[32, 32 + k].item(), expect, rtol=1e-4)
+        np.testing.assert_allclose(out.alpha[32 - k, 32].item(), expect, rtol=1e-4)
+    # Beyond alpha < 1/255 nothing is drawn.
+    assert out.alpha[32, 32 + 5].item() == 0.0
+
+
+def test_hdr_colour_is_not_clamped_above_and_alpha_is_capped():
+    scene = one_splat([0, 0, 5], [500.0, 0.0, 20.0], 0.2, 1.0 - 1e-6)
+    img = render(scene, camera()).image.numpy()
+    np.testing.assert_allclose(img[32, 32], [0.99 * 500, 0, 0.99 * 20], rtol=1e-4)
+
+
+def test_front_to_back_order():
+    red = one_splat([0, 0, 4], [1, 0, 0], 0.5, 0.6)
+    green = one_splat([0, 0, 6], [0, 1, 0], 0.5, 0.8)
+
+    def both(front, back):
+        return SplatScene(*(np.concatenate([getattr(front, k), getattr(back, k)])
+                            for k in ("positions", "rotations", "log_scales",
+                                      "opacity_logits", "sh")))
+
+    for scene in (both(red, green), both(green, red)):  # input order must not matter
+        px = render(scene, camera(), background=(0, 0, 1.0)).image.numpy()[32, 32]
+        np.testing.assert_allclose(px, [0.6, 0.4 * 0.8, 0.4 * 0.2], rtol=1e-4)
+
+
+def test_sh_colour_at_known_direction():
+    sh = torch.zeros(1, 4, 3)
+    sh[0, 0] = 1.0
+    sh[0, 2] = torch.tensor([0.5, -2.0, 0.0])  # the C1 * z term
+    along_z = eval_sh(sh, torch.tensor([[0.0, 0.0, 1.0]]))
+    np.testing.assert_allclose(along_z[0].numpy(),
+                               [0.5 + C0 + 0.5 * C1, max(0.0, 0.5 + C0 - 2 * C1), 0.5 + C0],
+                               rtol=1e-6)
+    # The same through the renderer: the view direction is splat - camera centre.
+    scene = one_splat([0, 0, 5], [0, 0, 0], 0.3, 1.0 - 1e-6, sh_degree=1)
+    scene.sh[0] = sh[0].numpy()
+    px = render(scene, camera()).image.numpy()[32, 32] / 0.99
+    np.testing.assert_allclose(px, along_z[0].numpy(), rtol=1e-4)
+    # Degree 0 ignores the higher terms.
+    px0 = render(scene, camera(), sh_degree=0).image.numpy()[32, 32] / 0.99
+    np.testing.assert_allclose(px0, [0.5 + C0] * 3, rtol=1e-4)
+
+
+@pytest.mark.parametrize("tile", [8, 16])
+def test_tiled_matches_dense_reference_values_and_gradients(tile):
+    rng = np.random.default_rng(1)
+    scene = random_scene(250, rng)
+    cam = PinholeCamera(70, 50, 60, 60, 33, 26, np.eye(3), np.zeros(3))
+    weights = torch.as_tensor(rng.uniform(0, 1, (50, 70, 3)), dtype=torch.float32)
+    grads = []
+    for fn in (lambda p: render(p, cam, background=0.2, tile=tile),
+               lambda p: render_reference(p, cam, background=0.2)):
+        p = SplatParams.from_scene(scene, requires_grad=True)
+        out = fn(p)
+        (out.image * weights).sum().backward()
+        grads.append((out.image.detach(), out.alpha.detach(),
+                      {k: v.grad for k, v in p.tensors().items()}))
+    (img_a, alpha_a, g_a), (img_b, alpha_b, g_b) = grads
+    assert img_b.max() > 1.0
+    torch.testing.assert_close(img_a, img_b, atol=1e-4, rtol=1e-4)
+    torch.testing.assert_close(alpha_a, alpha_b, atol=1e-5, rtol=1e-4)
+    for k in g_a:
+        scale = float(g_b[k].abs().max())
+        assert float((g_a[k] - g_b[k]).abs().max()) <= 2e-5 * scale + 1e-6, k
+
+
+def test_nothing_in_front_gives_background():
+    scene = one_splat([0, 0, -3], [1, 1, 1], 0.5, 0.9)
+    out = render(scene, camera(), background=(0.25, 0.5, 1.0))
+    np.testing.assert_allclose(out.image.numpy(), np.broadcast_to([0.25, 0.5, 1.0],
+                                                                  (65, 65, 3)))
+    assert out.alpha.abs().max() == 0
+
+
+def test_scene_round_trip_through_params():
+    rng = np.random.default_rng(2)
+    scene = random_scene(20, rng, sh_degree=2)
+    back = SplatParams.from_scene(scene).to_scene({"colour_space": "ACEScg"})
+    np.testing.assert_array_equal(back.sh, scene.sh)
+    np.testing.assert_array_equal(back.positions, scene.positions)
+    assert back.metadata["colour_space"] == "ACEScg"
+
+
+# -- environment maps -------------------------------------------------------------------
+
+def _openexr_direction(face: str, col: int, row: int, size: int) -> np.ndarray:
+    """OpenEXR CubeMap::direction for a data-window pixel, pixelPosition inverted by hand."""
+    s = size - 1
+    pif = {"+X": (s - row, col), "-X": (s - row, s - col), "+Y": (col, s - row),
+           "-Y": (col, row), "+Z": (s - col, s - row), "-Z": (col, s - row)}[face]
+    a, b = (pif[0] / s * 2 - 1), (pif[1] / s * 2 - 1)
+    d = {"+X": (1, a, b), "-X": (-1, a, b), "+Y": (a, 1, b), "-Y": (a, -1, b),
+         "+Z": (a, b, 1), "-Z": (a, b, -1)}[face]
+    d = np.array(d, float)
+    return d / np.linalg.norm(d)
+
+
+def test_cube_face_cameras_follow_openexr():
+    size = 6
+    cams = cube_face_cameras([1.0, 2.0, 3.0], size)
+    assert [c.name for c in cams] == list(CUBE_FACES)
+    for cam in cams:
+        np.testing.assert_allclose(cam.center, [1, 2, 3], atol=1e-12)
+        dirs = cam.ray_directions()
+        for row in range(size):
+            for col in range(size):
+                np.testing.assert_allclose(dirs[row, col],
+                                           _openexr_direction(cam.name, col, row, size),
+                                           atol=1e-12)
+
+
+def test_latlong_cube_round_trip():
+    d = latlong_directions(128, 64)
+    image = ((1 + 0.5 * d[..., :1] + d[..., 1:2] ** 2) * [1, 2, 3]).astype(np.float32)
+    back = cube_to_latlong(latlong_to_cube(image, 48), 128)
+    assert back.shape == image.shape
+    assert np.abs(back - image).max() < 0.01
+
+
+@pytest.mark.skipif(shutil.which("exrenvmap") is None, reason="needs OpenEXR's exrenvmap")
+def test_latlong_to_cube_matches_exrenvmap(tmp_path):
+    d = latlong_directions(256, 128)
+    image = (1.5 + d[..., 0:1] * [1, 0, 0] + d[..., 1:2] * [0, 1, 0] + d[..., 2:3] * [0, 0, 1])
+    src = write_exr(tmp_path / "ll.exr", image.astype(np.float32), "lin_rec709",
+                    {"textureformat": "LatLong Environment"}, half=False)
+    dst = tmp_path / "cube.exr"
+    subprocess.run(["exrenvmap", "-c", "-w", "16", "-f", "1", "1", str(src), str(dst)],
+                   check=True, capture_output=True)
+    theirs = read_image(dst).pixels.reshape(6, 16, 16, 3)
+    ours = latlong_to_cube(image.astype(np.float32), 16)
+    assert np.abs(theirs - ours).max() < 0.03
+
+
+def test_probe_sees_splats_on_the_right_faces():
+    # A bright splat along +X and a dim one along -Z, seen from the origin.
+    scene = SplatScene.from_activated(np.array([[3.0, 0, 0], [0, 0, -3.0]]),
+                                      np.array([[10.0, 0, 0], [0, 2.0, 0]]),
+                                      np.full((2, 3), 0.3), np.array([0.9, 0.9]))
+    faces = render_cube(scene, [0, 0, 0], 33)
+    plus_x, minus_z = CUBE_FACES.index("+X"), CUBE_FACES.index("-Z")
+    assert faces[plus_x, 16, 16, 0] > 5 and faces[plus_x, ..., 1].max() < 1e-6
+    assert faces[minus_z, 16, 16, 1] > 1 and faces[minus_z, ..., 0].max() < 1e-6
+    pano = render_latlong(scene, [0, 0, 0], 128)
+    assert pano.shape == (64, 128, 3)
+    # OpenEXR lat-long: +X a quarter width from the left, -Z at the left/right edge.
+    row, col = np.unravel_index(np.argmax(pano[..., 0]), pano.shape[:2])
+    assert abs(col - 32) <= 1 and abs(row - 32) <= 1
+    assert pano[32, 0, 1] > 1 and pano[32, 127, 1] > 1
+    # A splat behind the probe's near plane on every face is not drawn at all.
+    near = SplatScene.from_activated(np.array([[0.0, 0, 0]]), np.array([[5.0, 5, 5]]),
+                                     np.full((1, 3), 0.3), np.array([0.9]))
+    assert render_cube(near, [0, 0, 0], 8).max() == 0
