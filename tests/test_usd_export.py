@@ -249,3 +249,14 @@ def test_cli_export_and_bad_input(tmp_path, capsys):
     (tmp_path / "bad.ply").write_text("not a ply")
     assert main(["export", str(tmp_path / "bad.ply"), "-o", str(out)]) == 3
     assert "bad.ply" in capsys.readouterr().err
+
+
+def test_frame_record_from_poses_sets_up_axis_and_units():
+    """Fitted splats carry the poses' frame.json under 'frame': the stage uses it."""
+    from gaslight_usd.usd.stage import StageFrame
+
+    known = StageFrame.from_metadata({"frame": {"up_axis": "Y", "meters_per_unit": 0.01}})
+    assert (known.up_axis, known.meters_per_unit, known.assumed) == ("Y", 0.01, [])
+    unscaled = StageFrame.from_metadata({"frame": {"up_axis": "Y", "meters_per_unit": None}})
+    assert unscaled.up_axis == "Y"
+    assert unscaled.assumed == ["units unknown, metersPerUnit assumed 1.0"]

@@ -62,11 +62,14 @@ class StageFrame:
     @classmethod
     def from_metadata(cls, metadata: Mapping[str, Any]) -> StageFrame:
         assumed = []
-        up = str(metadata.get("up_axis") or "").upper().lstrip("+")
+        # Keys at the top level, or inside the poses' frame record (frame.json).
+        frame = metadata.get("frame")
+        frame = frame if isinstance(frame, Mapping) else {}
+        up = str(metadata.get("up_axis") or frame.get("up_axis") or "").upper().lstrip("+")
         if up not in ("Y", "Z"):
             up = DEFAULT_UP_AXIS
             assumed.append(f"up axis unknown, assumed {DEFAULT_UP_AXIS}")
-        mpu = metadata.get("meters_per_unit")
+        mpu = metadata.get("meters_per_unit") or frame.get("meters_per_unit")
         try:
             mpu = float(mpu)
             if not mpu > 0:
@@ -95,7 +98,8 @@ class Provenance:
                       ocio_config: str | None = None) -> Provenance:
         prov = metadata.get("provenance") or {}
         images = metadata.get("source_images") or (
-            prov.get("source_images") if isinstance(prov, Mapping) else None) or []
+            (prov.get("source_images") or prov.get("views"))
+            if isinstance(prov, Mapping) else None) or []
         method = metadata.get("method") or (
             prov.get("method") if isinstance(prov, Mapping) else "") or ""
         try:
