@@ -3,25 +3,37 @@
 No downloaded weights, numpy only, well under a second per megapixel.
 
 Model. The photo is linearised through its curve; a pixel is clipped when its
-brightest channel reaches ``CLIP``. For every clipped pixel the model predicts
-``log2`` of its brightest linear channel (relative to the photo's white) from
-features of the pixel and of its clipped region (8-connected component):
+brightest channel reaches ``CLIP``. Clipped pixels are grouped into regions
+(8-connected components) and a two-layer perceptron (:data:`PARAMS_FILE`, a
+few KB, trained by ``python -m gaslight_usd.uplift.calibrate``) predicts, for
+every region, ``log2`` of its mean brightest linear channel (relative to the
+photo's white, so 0 means "just white") from region features:
 
-* depth: distance to the nearest unclipped pixel, and the region's largest depth
-  and area (size and shape: a thin streak is shallow, a disc is deep);
-* glow: the mean luminance of two rings around the region (near, far) and their
-  ratio (a light source bright enough to clip far beyond white lights up its
-  surroundings, a window or a white wall does not);
+* size and shape: area, largest depth (distance to the border), compactness
+  (a thin streak is shallow, a disc is deep);
+* glow: the mean luminance of four rings around the region (1.5 to 30 units
+  out), the slope between the nearest and farthest ring, and how much of the
+  nearest rings is itself near white (a sky or a white wall that only just
+  clips has a flat near-white surround; a lamp or the sun lights a halo that
+  falls off);
+* colour: the ring's saturation and how many of the region's pixels clip in
+  all three channels;
 * context: the photo's median luminance and clipped fraction (how far the
   photo is over-exposed).
 
-Lengths are measured in units of ``sqrt(H W) / 512`` pixels so the model does
-not depend on resolution. A two-layer perceptron (:data:`PARAMS_FILE`, a few
-KB, trained by ``python -m gaslight_usd.uplift.calibrate``) maps the features
-to the log excess. Colour: channels that are not clipped keep their measured
-value; clipped channels take the predicted peak times the ring's chromaticity,
-never below white. Output values are clamped to at least the clip level, so a
-clipped pixel never comes out darker than the sensor saw it.
+Lengths are in units of ``sqrt(H W) / 256`` pixels, so the model does not
+depend on resolution. The calibration fits the relighting error itself (an
+overestimated "sun" in a near-white sky costs far more than an underestimate),
+so where the evidence is weak the prediction stays near white.
+
+Rendering. The region's predicted mean is spread with a peaked profile, linear
+in the distance to the region's border (a cone: brightest in the middle, the
+measured white at the edge), keeping the mean. Every pixel is capped at
+:func:`peak_cap` (what EV -12, the recursion's last step, still sees below the
+threshold), flattening the profile first so that the energy is kept where it
+can be; so the recursion's darkest exposure never clips. Colour: channels
+that are not clipped keep their measured value; clipped channels take the
+predicted value times the ring's chromaticity, never below white.
 
 Applied to its own output (the recursion), the predictor recognises the image
 it rendered and re-exposes the same estimate 2 EV lower, so every step of the
@@ -44,76 +56,133 @@ from .curves import Curve
 from .predictors import register_predictor
 
 CLIP = 0.99
+"""Encoded level from which a channel counts as clipped."""
+WHITE = 0.9
+"""Encoded level counted as "near white" in the glow rings (the recursion's threshold)."""
+MAX_STEPS = 6
+"""The recursion's depth (EV -12): the estimate never exceeds what that step can show."""
+CAP_LEVEL = 0.85
+"""Encoded level the brightest pixel may reach at EV -12 (below the 0.9 threshold)."""
 PARAMS_FILE = Path(__file__).with_name("fast_predictor_params.json")
-FEATURES = ("log_depth", "depth_frac", "log_max_depth", "log_area", "log_ring_near",
-            "log_ring_far", "glow_ratio", "log_median", "clipped_frac", "one")
+RING_EDGES = (1.5, 4.0, 10.0, 30.0)
+"""Outer radii of the glow rings in units of ``sqrt(H W) / 256`` pixels."""
+RING_MIN_PX = (1.5, 3.0, 6.0, 12.0)
+"""Smallest outer radii in pixels (small photos still get one pixel per ring)."""
+FEATURES = ("log_area", "log_max_depth", "log_compact", "log_ring0", "log_ring1",
+            "log_ring2", "log_ring3", "glow_slope", "white0", "white1", "ring_sat",
+            "all_clipped", "log_median", "clipped_frac", "one")
 LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 @dataclass
-class ClipFeatures:
-    """Per-clipped-pixel features and what the renderer needs besides."""
+class RegionFeatures:
+    """Clipped regions of one photo, their features and what the renderer needs."""
 
     mask: np.ndarray
     """(H, W) bool: clipped pixels"""
+    labels: np.ndarray
+    """(H, W) int32: region of every pixel, 0 outside"""
     features: np.ndarray
-    """(N, F) float32, rows in ``np.nonzero(mask)`` order"""
+    """(R, F) float32, region ``r`` is label ``r + 1``"""
     chroma: np.ndarray
-    """(N, 3) float32: colour of the pixel's region ring, max channel 1"""
+    """(R, 3) float32: colour of the region's near ring, max channel 1"""
+    depth: np.ndarray
+    """(H, W) float32: distance in pixels to the nearest unclipped pixel (0 outside)"""
+    area: np.ndarray
+    """(R,) pixel count of every region"""
 
 
-def _scale(shape: tuple[int, ...]) -> float:
-    return max(float(np.sqrt(shape[0] * shape[1])) / 512.0, 1e-3)
+def _unit(shape: tuple[int, ...]) -> float:
+    return max(float(np.sqrt(shape[0] * shape[1])) / 256.0, 1e-3)
 
 
-def clip_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
-                  ) -> ClipFeatures | None:
-    """Features of every clipped pixel of one photo, or None if nothing is clipped."""
-    mask = encoded.max(axis=-1) >= clip
-    if not mask.any():
+def channel_max(image: np.ndarray) -> np.ndarray:
+    """Brightest channel of an ``(..., 3)`` array (much faster than ``max(axis=-1)``)."""
+    return np.maximum(np.maximum(image[..., 0], image[..., 1]), image[..., 2])
+
+
+def _window(mask: np.ndarray, margin: int) -> tuple[slice, slice]:
+    """The bounding box of ``mask`` grown by ``margin`` pixels, clipped to the image."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    h, w = mask.shape
+    return (slice(max(rows[0] - margin, 0), min(rows[-1] + margin + 1, h)),
+            slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, w)))
+
+
+def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
+                    ) -> RegionFeatures | None:
+    """Features of every clipped region of one photo, or None if nothing is clipped."""
+    full_peak = channel_max(encoded)
+    full_mask = full_peak >= clip
+    if not full_mask.any():
         return None
-    scale = _scale(mask.shape)
-    lum = np.clip(linear, 0.0, 1.0) @ LUM
+    unit = _unit(full_mask.shape)
+    median = float(np.median(np.clip(linear, 0.0, 1.0) @ LUM))
+    radii = [max(edge * unit, min_px) for edge, min_px in zip(RING_EDGES, RING_MIN_PX,
+                                                              strict=True)]
+    # Everything below happens in the window around the clipped pixels (the rings
+    # reach at most the largest radius); the labels and depth are pasted back.
+    win = _window(full_mask, int(np.ceil(radii[-1])) + 1)
+    mask, peak, linear_w = full_mask[win], full_peak[win], linear[win]
     labels, count = ndimage.label(mask, structure=np.ones((3, 3), bool))
-    depth = ndimage.distance_transform_edt(mask).astype(np.float32) / scale
-    index = np.arange(1, count + 1)
-    area = ndimage.sum_labels(np.ones_like(depth), labels, index) / scale ** 2
-    max_depth = ndimage.maximum(depth, labels, index).astype(np.float32)
-    # Rings: unclipped pixels within r of a region, labelled by their nearest region.
+    depth = ndimage.distance_transform_edt(mask).astype(np.float32)
+    lab = labels[mask]
+    area = np.bincount(lab, minlength=count + 1)[1:].astype(np.float64)
+    max_depth = np.zeros(count + 1)
+    np.maximum.at(max_depth, lab, depth[mask])
+    max_depth = max_depth[1:]
+    all_clipped = np.bincount(lab, weights=channel_max(-encoded[win][mask]) <= -clip,
+                              minlength=count + 1)[1:] / area
+    # Rings: unclipped pixels within a radius of a region, labelled by their nearest region.
     dist_out, (iy, ix) = ndimage.distance_transform_edt(~mask, return_indices=True)
-    dist_out = dist_out / scale
-    nearest = labels[iy, ix]
-    rings = []
-    for lo, hi in ((0.0, 3.0), (3.0, 12.0)):
-        sel = (~mask) & (dist_out > lo) & (dist_out <= hi)
-        n = ndimage.sum_labels(sel, nearest, index)
-        s = ndimage.sum_labels(np.where(sel, lum, 0.0), nearest, index)
-        rings.append(np.where(n > 0, s / np.maximum(n, 1), 1.0).astype(np.float32))
-    near = np.clip(rings[0], 1e-4, 1.0)
-    far = np.clip(np.minimum(rings[1], near), 1e-4, 1.0)
-    sel = (~mask) & (dist_out <= 3.0)
-    chroma = np.stack([ndimage.sum_labels(np.where(sel, linear[..., c], 0.0), nearest, index)
-                       for c in range(3)], axis=-1)
+    near_sel = (dist_out > 0) & (dist_out <= radii[-1])
+    dist = dist_out[near_sel]
+    nearest = labels[iy[near_sel], ix[near_sel]]
+    ring_lin = linear_w[near_sel]
+    lum = np.clip(ring_lin, 0.0, 1.0) @ LUM
+    white = peak[near_sel] >= WHITE
+    band = np.searchsorted(np.asarray(radii), dist, side="left")  # 0..3
+    slot = nearest * len(radii) + band
+    size = (count + 1) * len(radii)
+    n = np.bincount(slot, minlength=size).reshape(count + 1, -1)[1:]
+    ring_sum = np.bincount(slot, weights=lum, minlength=size).reshape(count + 1, -1)[1:]
+    white_sum = np.bincount(slot, weights=white, minlength=size).reshape(count + 1, -1)[1:]
+    rings, whites = ring_sum / np.maximum(n, 1), white_sum / np.maximum(n, 1)
+    # an empty ring (the region fills the photo there) repeats the ring inside it
+    for k in range(len(radii)):
+        prev_r = rings[:, k - 1] if k else 1.0
+        prev_w = whites[:, k - 1] if k else 1.0
+        rings[:, k] = np.where(n[:, k] > 0, rings[:, k], prev_r)
+        whites[:, k] = np.where(n[:, k] > 0, whites[:, k], prev_w)
+    ring = np.log2(np.clip(rings, 1e-4, 1.0))
+    close = band <= 1
+    chroma = np.stack([np.bincount(nearest[close], weights=ring_lin[close, c],
+                                   minlength=count + 1)[1:] for c in range(3)], axis=-1)
     chroma = np.clip(chroma, 0.0, None) + 1e-6
-    chroma = (chroma / chroma.max(axis=-1, keepdims=True)).astype(np.float32)
-
-    lab = labels[mask] - 1
-    d = depth[mask]
-    median = float(np.median(lum))
+    chroma = chroma / chroma.max(axis=-1, keepdims=True)
+    area_u = area / unit ** 2
+    depth_u = max_depth / unit
     columns = [
-        np.log2(1.0 + d),
-        d / np.maximum(max_depth[lab], 1e-3),
-        np.log2(1.0 + max_depth[lab]),
-        np.log2(1.0 + area[lab]),
-        np.log2(near[lab]),
-        np.log2(far[lab]),
-        np.log2(near[lab] / far[lab]),
-        np.full(d.shape, np.log2(max(median, 1e-4))),
-        np.full(d.shape, float(mask.mean())),
-        np.ones(d.shape),
+        np.log2(1.0 + area_u),
+        np.log2(1.0 + depth_u),
+        np.log2(area_u / (np.pi * depth_u ** 2 + 1e-3) + 1e-3),
+        *ring.T,
+        ring[:, 0] - ring[:, 3],
+        whites[:, 0],
+        whites[:, 1],
+        1.0 - chroma.min(axis=-1),
+        all_clipped,
+        np.full(count, np.log2(max(median, 1e-4))),
+        np.full(count, float(full_mask.mean())),
+        np.ones(count),
     ]
     feats = np.stack(columns, axis=-1).astype(np.float32)
-    return ClipFeatures(mask=mask, features=feats, chroma=chroma[lab])
+    full_labels = np.zeros(full_mask.shape, np.int32)
+    full_labels[win] = labels
+    full_depth = np.zeros(full_mask.shape, np.float32)
+    full_depth[win] = depth
+    return RegionFeatures(mask=full_mask, labels=full_labels, features=feats,
+                          chroma=chroma.astype(np.float32), depth=full_depth, area=area)
 
 
 class Mlp:
@@ -131,15 +200,45 @@ class Mlp:
             h = h @ w + b
             if i < len(self.layers) - 1:
                 h = np.tanh(h)
-        return np.logaddexp(0.0, h[:, 0]).astype(np.float32)  # softplus: excess >= 0
+        return np.logaddexp(0.0, h[:, 0]).astype(np.float32)  # softplus: mean >= white
 
 
 def load_params(path: Path = PARAMS_FILE) -> dict:
     return json.loads(Path(path).read_text())
 
 
+def peak_cap(curve: Curve, steps: int = MAX_STEPS, level: float = CAP_LEVEL) -> float:
+    """The brightest linear value the recursion's darkest step still shows below ``level``."""
+    return float(curve.to_linear(np.float32(level))) * 4.0 ** steps
+
+
+def spread(regions: RegionFeatures, log_mean: np.ndarray, cap: float) -> np.ndarray:
+    """Brightest-channel radiance of every clipped pixel (``np.nonzero(mask)`` order).
+
+    Region ``r`` gets mean ``2 ** log_mean[r]`` (at least 1, white), spread as
+    ``1 + (m - 1) d / mean(d)`` with ``d`` the pixel's depth; where that peak
+    would pass ``cap`` the profile is flattened towards uniform until it fits,
+    and where even uniform does not fit the mean itself is capped.
+    """
+    lab = regions.labels[regions.mask] - 1
+    d = regions.depth[regions.mask].astype(np.float64)
+    count = len(regions.area)
+    mean_d = np.bincount(lab, weights=d, minlength=count) / np.maximum(regions.area, 1)
+    max_d = np.zeros(count)
+    np.maximum.at(max_d, lab, d)
+    w_peak = max_d / np.maximum(mean_d, 1e-9)
+    excess = np.exp2(np.maximum(log_mean.astype(np.float64), 0.0)) - 1.0
+    excess = np.minimum(excess, cap - 1.0)
+    room = (cap - 1.0) / np.maximum(excess, 1e-12)  # the largest weight allowed
+    flat = np.clip((w_peak - room) / np.maximum(w_peak - 1.0, 1e-12), 0.0, 1.0)
+    w = (1.0 - flat[lab]) * d / np.maximum(mean_d[lab], 1e-9) + flat[lab]
+    return np.minimum(1.0 + excess[lab] * w, cap).astype(np.float32)
+
+
 def _digest(a: np.ndarray) -> str:
-    return hashlib.blake2b(np.ascontiguousarray(a).tobytes(), digest_size=16).hexdigest()
+    """A cheap key (shape and a sparse sample); the cache checks the full image on a hit."""
+    sample = np.ascontiguousarray(a.reshape(-1)[::61])
+    return f"{a.shape}:" + hashlib.blake2b(sample.tobytes(), digest_size=16).hexdigest()
 
 
 class FastPredictor:
@@ -152,36 +251,41 @@ class FastPredictor:
             params = load_params(Path(params) if params else PARAMS_FILE)
         self.params = params
         self.model = Mlp(params["model"])
-        self._cache: OrderedDict[str, np.ndarray] = OrderedDict()
+        self._cache: OrderedDict[str, tuple[np.ndarray, np.ndarray]] = OrderedDict()
         self._cache_size = cache_size
+
+    def region_log_means(self, regions: RegionFeatures) -> np.ndarray:
+        """Predicted ``log2`` mean brightest channel of every region (>= 0)."""
+        return self.model(regions.features)
 
     def estimate(self, encoded: np.ndarray, curve: Curve) -> np.ndarray:
         """Linear radiance of the photo with clipped pixels filled (1.0 = white)."""
         enc = np.clip(np.asarray(encoded, np.float32), 0.0, 1.0)
         linear = curve.to_linear(enc)
-        feats = clip_features(linear, enc)
-        if feats is None or feats.mask.all():
+        regions = region_features(linear, enc)
+        if regions is None or regions.mask.all():
             # nothing clipped, or nothing but clipped: no border to extrapolate from,
             # so a fully white photo stays at white (documented, sensible)
             return linear
-        excess = self.model(feats.features)
-        peak = np.exp2(excess)[:, None]
-        filled = linear[feats.mask]
-        clipped_ch = enc[feats.mask] >= CLIP
-        guess = np.maximum(peak * feats.chroma, 1.0)
-        filled = np.where(clipped_ch, guess, filled)
+        value = spread(regions, self.region_log_means(regions), peak_cap(curve))[:, None]
+        lab = regions.labels[regions.mask] - 1
+        clipped_ch = enc[regions.mask] >= CLIP
+        guess = np.maximum(value * regions.chroma[lab], 1.0)
         out = linear.copy()
-        out[feats.mask] = filled
+        out[regions.mask] = np.where(clipped_ch, guess, linear[regions.mask])
         return out
 
     def _remember(self, rendered: np.ndarray, radiance: np.ndarray) -> None:
-        self._cache[_digest(rendered)] = radiance
+        self._cache[_digest(rendered)] = (rendered, radiance)
         while len(self._cache) > self._cache_size:
             self._cache.popitem(last=False)
 
     def darker(self, encoded: np.ndarray, curve: Curve, ev: float) -> np.ndarray:
-        radiance = self._cache.get(_digest(np.asarray(encoded, np.float32)))
-        if radiance is None:
+        encoded = np.asarray(encoded, np.float32)
+        hit = self._cache.get(_digest(encoded))
+        if hit is not None and np.array_equal(hit[0], encoded):
+            radiance = hit[1]
+        else:
             radiance = self.estimate(encoded, curve)
         radiance = radiance * np.float32(0.25)
         rendered = np.clip(curve.to_encoded(np.clip(radiance, 0.0, 1.0)), 0.0, 1.0).astype(
