@@ -64,7 +64,8 @@ def fit(ctx: StageContext) -> StageResult:
         counts={"splats": m["splats"], "views": len(data.names),
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
-                                   "sh_degree", "fit_seconds", "pruned_idle")},
+                                   "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
+                                   "backdrop_splats")},
     )
 
 

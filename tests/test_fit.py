@@ -143,3 +143,49 @@ def test_views_that_do_not_overlap_fail(tmp_path):
     write_model(tmp_path / "sparse", ColmapModel(cameras=cams))
     with pytest.raises(InputError, match="overlap no other view"):
         load_fit_data(tmp_path / "hdr", tmp_path / "sparse")
+
+
+def test_surface_fill_puts_pixels_on_the_sparse_points_plane():
+    from gaslight_usd.fit.init import surface_fill_points
+    rng = np.random.default_rng(0)
+    # Sparse points on the plane z = 5; two cameras at z = 0 looking down +z.
+    plane = np.column_stack([rng.uniform(-3, 3, 200), rng.uniform(-3, 3, 200), np.full(200, 5.0)])
+    cams = [PinholeCamera(32, 24, 20, 20, 16, 12, np.eye(3), np.array([x, 0.0, 0.0]),
+                          name=f"c{k}.jpg") for k, x in enumerate((0.0, -0.3))]
+    images = [np.full((24, 32, 3), v, np.float32) for v in (2.0, 7.0)]
+    pts, cols = surface_fill_points(plane, None, cams, images, 100, rng)
+    assert len(pts) == 100
+    np.testing.assert_allclose(pts[:, 2], 5.0, atol=1e-9)  # fronto-parallel: exact depth
+    assert set(np.unique(cols)) <= {2.0, 7.0}
+
+
+def test_backdrop_fills_only_what_no_camera_sees():
+    from gaslight_usd.fit.backdrop import unseen_backdrop
+    from gaslight_usd.splats import SplatScene, rgb_to_sh_dc
+    rng = np.random.default_rng(1)
+    # Splats filling the box [-1, 1]^3, all of colour (3, 2, 1).
+    pos = rng.uniform(-1, 1, (2000, 3))
+    n = len(pos)
+    sh = np.zeros((n, 1, 3), np.float32)
+    sh[:, 0] = rgb_to_sh_dc(np.array([3.0, 2.0, 1.0]))
+    scene = SplatScene(pos, np.tile([1.0, 0, 0, 0], (n, 1)).astype(np.float32),
+                       np.full((n, 3), -3.0, np.float32), np.full(n, 3.0, np.float32), sh)
+    rot, t = look_at(np.zeros(3), [0, 0, 5.0])  # sees the +z face only
+    cam = PinholeCamera(40, 40, 20, 20, 20, 20, rot, t, name="c.jpg")
+    tiles = unseen_backdrop(scene, [cam], 600)
+    assert 0 < tiles.count < 600
+    uv, z = cam.project(tiles.positions)
+    inside = (z > 0) & (uv >= 0).all(1) & (uv < 40).all(1)
+    assert not inside.any()
+    # Tiles lie on the box faces (within its 0.5% quantiles) and take the donors' colour.
+    assert np.all(np.abs(tiles.positions).max(1) > 0.95)
+    np.testing.assert_allclose(tiles.base_colours, np.tile([3.0, 2.0, 1.0], (tiles.count, 1)),
+                               rtol=1e-5)
+    assert unseen_backdrop(scene, [cam], 600, room=50).count <= 50
+
+
+def test_tone_map_for_triangulation():
+    from gaslight_usd.fit.triangulate import tone_map_8bit
+    img = np.array([[[0.0, 0.5, 4.0]]], np.float32)
+    # sRGB OETF of 0.5 is 0.7354 -> 188; 4.0 clips to 255.
+    np.testing.assert_array_equal(tone_map_8bit(img, 1.0)[0, 0], [0, 188, 255])

@@ -81,5 +81,6 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                      "held_out_log_lum_rmse": m["held_out_log_lum_rmse_stops"],
                      "held_out_pu21_psnr": m["held_out_pu21_psnr"],
                      "sh_degree": m["sh_degree"], "iterations": m["iterations"],
+                     "backdrop_splats": m["backdrop_splats"], "init": m["init"],
                      **(probe_errors(result.scene) if scene == "room" else {})})
     return rows

@@ -36,6 +36,8 @@ class FitData:
     attributes: dict[str, Any] = field(default_factory=dict)
     """Header facts of the views (exposure scale, method...), from the first view."""
     downscale: int = 1
+    paths: list[Path] = field(default_factory=list)
+    """The full-resolution HDR view of each camera (empty for in-memory data)."""
 
     def split(self, holdout_every: int) -> tuple[list[int], list[int]]:
         """Training and held-out view indices (every ``holdout_every``-th held out)."""
@@ -138,9 +140,10 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
     model = read_poses(poses)
     pairs = match_views(hdr_dir, model)
     check_overlap([c for c, _ in pairs], model.points)
-    names, cams, images = [], [], []
+    names, cams, images, paths = [], [], [], []
     space, attrs = "", {}
     for cam, path in pairs:
+        paths.append(path)
         img = read_image(path)
         if not space:
             space = img.colour_space
@@ -149,4 +152,4 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
         cams.append(scale_camera(cam, downscale))
         images.append(box_downscale(np.maximum(img.pixels, 0.0), downscale))
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
-                   attributes=attrs, downscale=downscale)
+                   attributes=attrs, downscale=downscale, paths=paths)

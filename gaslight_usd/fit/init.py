@@ -1,7 +1,15 @@
-"""Initial splats: from the HDR-coloured sparse points, or, when the poses carry
-none, from a small plane sweep over the training views.
+"""Initial splats: from the HDR-coloured sparse points, spread over the views'
+surfaces, or, when there are no points at all, from a small plane sweep.
 
-Plane sweep (points-free start): random pixels of random training views are
+Sparse points (given, or triangulated from the HDR views by
+:mod:`.triangulate`) are too few to start from alone (hundreds for a room), so
+more points are added where the views see surfaces: random pixels of the
+training views are pushed along their rays to the median depth of the sparse
+points that project nearest to them in that view (points the view sees: its
+track when known, else its frustum). The pixel's HDR colour is the point's
+colour. Walls and floors between features come out on their planes.
+
+Plane sweep (no points at all): random pixels of random training views are
 pushed along their rays to the candidate depth (geometric steps spanning 0.05x
 to 20x the camera spread) where the other views agree best on the colour
 (lowest spread of log colour among the views that see that point); the pixel's
@@ -11,10 +19,13 @@ random depth. Scales start at the mean distance to the 3 nearest neighbours.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
+from ..colmap import ColmapModel
 from ..poses import colour_points
 
 
@@ -26,6 +37,14 @@ def neighbour_scales(points: np.ndarray) -> np.ndarray:
     return np.clip(dist[:, 1:].mean(1), 1e-4, None)
 
 
+BRIGHT_RATIO = 64.0
+"""Pixels this many times (6 stops) brighter than the views' median count as lamps
+(windows, dimmer and flat, are left to the surface fill: they lie on walls)."""
+BRIGHT_SHARE = 0.05
+"""Share of the initial points placed on light sources (when there are any)."""
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+
 def _sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     h, w = image.shape[:2]
     x = np.clip(uv[..., 0].astype(np.int64), 0, w - 1)
@@ -33,13 +52,46 @@ def _sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return image[y, x]
 
 
+def _sweep_depths(v: int, px: np.ndarray, cameras: list[PinholeCamera],
+                  images: list[np.ndarray], depths: np.ndarray, rng: np.random.Generator
+                  ) -> np.ndarray:
+    """(n, 3) points: pixels ``px`` of view ``v`` at their most photo-consistent depth."""
+    cam, n, steps = cameras[v], len(px), len(depths)
+    rays = np.stack([(px[:, 0] - cam.cx) / cam.fx, (px[:, 1] - cam.cy) / cam.fy,
+                     np.ones(n)], -1) @ cam.R
+    cand = cam.center + rays[:, None, :] * depths[None, :, None]  # (n, D, 3)
+    logs = []
+    for o, other in enumerate(cameras):
+        if o == v:
+            continue
+        uv, z = other.project(cand.reshape(-1, 3))
+        inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < other.width) & \
+                 (uv[:, 1] >= 0) & (uv[:, 1] < other.height)
+        val = np.log(np.maximum(_sample(images[o], uv), 1e-4)).mean(-1)
+        logs.append(np.where(inside, val, np.nan).reshape(n, steps))
+    own = np.log(np.maximum(_sample(images[v], px), 1e-4)).mean(-1)[:, None]
+    stack = np.stack(logs)  # (V-1, n, D)
+    seen = np.isfinite(stack).sum(0)
+    diff = np.where(seen[None] > 0, np.abs(stack - own[None]), 0.0)
+    err = np.nansum(diff, axis=0) / np.maximum(seen, 1)
+    err = np.where(seen >= 1, err + 0.5 / np.maximum(seen, 1), np.inf)
+    best = np.argmin(err, axis=1)
+    lost = ~np.isfinite(err[np.arange(n), best])
+    best[lost] = rng.integers(0, steps, int(lost.sum()))
+    return cand[np.arange(n), best]
+
+
+def _sweep_range(cameras: list[PinholeCamera], depth_steps: int) -> np.ndarray:
+    centres = np.array([c.center for c in cameras])
+    spread = max(float(np.linalg.norm(centres - centres.mean(0), axis=1).max()), 1e-2)
+    return spread * np.geomspace(0.05, 20.0, depth_steps)
+
+
 def plane_sweep_points(cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
                        rng: np.random.Generator, depth_steps: int = 32
                        ) -> tuple[np.ndarray, np.ndarray]:
     """(count, 3) points and (count, 3) colours from photo-consistent depths."""
-    centres = np.array([c.center for c in cameras])
-    spread = max(float(np.linalg.norm(centres - centres.mean(0), axis=1).max()), 1e-2)
-    depths = spread * np.geomspace(0.05, 20.0, depth_steps)
+    depths = _sweep_range(cameras, depth_steps)
     src = rng.integers(0, len(cameras), count)
     pts = np.empty((count, 3))
     cols = np.empty((count, 3), np.float32)
@@ -48,42 +100,111 @@ def plane_sweep_points(cameras: list[PinholeCamera], images: list[np.ndarray], c
         if not len(idx):
             continue
         px = rng.uniform([0, 0], [cam.width, cam.height], (len(idx), 2))
-        rays = np.stack([(px[:, 0] - cam.cx) / cam.fx, (px[:, 1] - cam.cy) / cam.fy,
-                         np.ones(len(idx))], -1) @ cam.R
-        cand = cam.center + rays[:, None, :] * depths[None, :, None]  # (n, D, 3)
-        logs = []
-        for o, other in enumerate(cameras):
-            if o == v:
-                continue
-            uv, z = other.project(cand.reshape(-1, 3))
-            inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < other.width) & \
-                     (uv[:, 1] >= 0) & (uv[:, 1] < other.height)
-            val = np.log(np.maximum(_sample(images[o], uv), 1e-4)).mean(-1)
-            logs.append(np.where(inside, val, np.nan).reshape(len(idx), depth_steps))
-        own = np.log(np.maximum(_sample(images[v], px), 1e-4)).mean(-1)[:, None]
-        stack = np.stack(logs)  # (V-1, n, D)
-        seen = np.isfinite(stack).sum(0)
-        diff = np.where(seen[None] > 0, np.abs(stack - own[None]), 0.0)
-        err = np.nansum(diff, axis=0) / np.maximum(seen, 1)
-        err = np.where(seen >= 1, err + 0.5 / np.maximum(seen, 1), np.inf)
-        best = np.argmin(err, axis=1)
-        lost = ~np.isfinite(err[np.arange(len(idx)), best])
-        best[lost] = rng.integers(0, depth_steps, int(lost.sum()))
-        pts[idx] = cand[np.arange(len(idx)), best]
+        pts[idx] = _sweep_depths(v, px, cameras, images, depths, rng)
         cols[idx] = _sample(images[v], px)
     return pts, cols
 
 
-def initial_points(model, cameras: list[PinholeCamera], images: list[np.ndarray],
+def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
+                  rng: np.random.Generator, ratio: float = BRIGHT_RATIO,
+                  depth_steps: int = 48) -> tuple[np.ndarray, np.ndarray]:
+    """Points on light sources: pixels over ``ratio`` x the median of all views, plane-swept.
+
+    Lamps and windows have no features to triangulate and sit off the
+    surfaces the sparse points describe, yet they light the scene; their own
+    brightness makes their depth easy to find by photo-consistency.
+    """
+    lum = [im @ LUMA for im in images]
+    level = ratio * float(np.median(np.concatenate([y[::4, ::4].ravel() for y in lum])))
+    where = [np.argwhere(y > level) for y in lum]
+    total = sum(len(w) for w in where)
+    if not total or count <= 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
+    depths = _sweep_range(cameras, depth_steps)
+    pts, cols = [], []
+    for v, yx in enumerate(where):
+        n = min(len(yx), int(round(count * len(yx) / total)))
+        if not n:
+            continue
+        pick = yx[rng.choice(len(yx), n, replace=False)]
+        px = pick[:, ::-1] + rng.uniform(0, 1, (n, 2))
+        pts.append(_sweep_depths(v, px, cameras, images, depths, rng))
+        cols.append(_sample(images[v], px))
+    if not pts:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
+    return np.concatenate(pts), np.concatenate(cols).astype(np.float32)
+
+
+def _seen_by(model: ColmapModel, names: list[str]) -> np.ndarray | None:
+    """(V, N) which of the named views each sparse point's track holds (None: no tracks)."""
+    tracks = model.tracks
+    if tracks is None or len(tracks) != len(model.points) or not any(len(t) for t in tracks):
+        return None
+    stems = [Path(n).stem for n in model.names]
+    ids = np.array([model.image_ids[stems.index(Path(n).stem)] for n in names], np.int64)
+    lengths = np.fromiter((len(t) for t in tracks), np.int64, len(tracks))
+    point_of = np.repeat(np.arange(len(tracks)), lengths)
+    image_of = np.concatenate([np.asarray(t, np.int64).reshape(-1, 2)[:, 0] for t in tracks])
+    lut = np.full(max(int(ids.max()), int(image_of.max(initial=0))) + 1, -1, np.int64)
+    lut[ids] = np.arange(len(ids))
+    row = lut[np.clip(image_of, 0, None)]
+    seen = np.zeros((len(names), len(tracks)), bool)
+    keep = row >= 0
+    seen[row[keep], point_of[keep]] = True
+    return seen
+
+
+def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
+                        cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
+                        rng: np.random.Generator, neighbours: int = 4
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """(n <= count, 3) points on the views' surfaces and their HDR colours (module doc)."""
+    rays_per_view, depths_per_view = [], []
+    for v, cam in enumerate(cameras):
+        uv, z = cam.project(points)
+        ok = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & (uv[:, 1] >= 0) & \
+             (uv[:, 1] < cam.height)
+        if seen is not None:
+            ok &= seen[v]
+        rays_per_view.append(uv[ok])
+        depths_per_view.append(z[ok])
+    usable = [v for v in range(len(cameras)) if len(depths_per_view[v]) >= neighbours]
+    if not usable or count <= 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
+    share = rng.multinomial(count, np.full(len(usable), 1.0 / len(usable)))
+    pts, cols = [], []
+    for v, n in zip(usable, share, strict=True):
+        cam = cameras[v]
+        px = rng.uniform([0, 0], [cam.width, cam.height], (n, 2))
+        _, near = cKDTree(rays_per_view[v]).query(px, k=neighbours)
+        depth = np.median(depths_per_view[v][near], axis=1)
+        rays = np.stack([(px[:, 0] - cam.cx) / cam.fx, (px[:, 1] - cam.cy) / cam.fy,
+                         np.ones(n)], -1) @ cam.R
+        pts.append(cam.center + rays * depth[:, None])
+        cols.append(_sample(images[v], px))
+    return np.concatenate(pts), np.concatenate(cols).astype(np.float32)
+
+
+def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: list[np.ndarray],
                    names: list[str], count: int, rng: np.random.Generator
                    ) -> tuple[np.ndarray, np.ndarray, str]:
-    """Points, HDR colours and how they were made ("sparse points" or "plane sweep")."""
+    """Points, HDR colours and how they were made.
+
+    "sparse points + surface fill" when the model has points, else "plane sweep".
+    """
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
         pts = np.asarray(model.points, np.float64)
-        if len(pts) > count:
-            pick = rng.choice(len(pts), count, replace=False)
+        if len(pts) > count // 2:
+            pick = np.sort(rng.choice(len(pts), count // 2, replace=False))
             pts, colours = pts[pick], colours[pick]
-        return pts, colours, "sparse points"
+        lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng)
+        seen = _seen_by(model, names)
+        fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
+                                                 cameras, images,
+                                                 count - len(pts) - len(lights), rng)
+        return (np.concatenate([pts, lights, fill]),
+                np.concatenate([colours, light_colours, fill_colours]),
+                "sparse points + surface fill + light sources")
     pts, cols = plane_sweep_points(cameras, images, count, rng)
     return pts, cols, "plane sweep"

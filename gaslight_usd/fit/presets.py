@@ -14,6 +14,8 @@ class FitConfig:
     budget: int = 100_000
     """Most splats kept."""
     init_points: int = 20_000
+    triangulate: bool = True
+    """Triangulate sparse points from the HDR views when the poses carry none."""
     max_sh_degree: int = 3
     sh_raise_every: int = 500
     """Steps between raising the active SH degree by one."""
@@ -44,6 +46,8 @@ class FitConfig:
     lr_colour: float = 1e-2
     lr_sh: float = 2.5e-3
     init_opacity: float = 0.1
+    backdrop_tiles: int = 3000
+    """Tiles over the splats' box; those no training view sees are kept (0: no backdrop)."""
     checkpoint_every: int = 200
     background: float = 0.0
     """Radiance behind the splats (0: a closed set such as a room)."""

@@ -11,6 +11,12 @@ gradient and prune. It adds no more than the scene needs:
 - splats that contribute (almost) nothing to any training view are pruned;
 - the SH degree is raised step by step and the exported degree is the lowest
   whose held-out error is within 1% of the best.
+
+It starts from real geometry when it can: poses without points get points
+triangulated from the HDR views (:mod:`.triangulate`), spread over the
+surfaces the views see (:mod:`.init`). After the fit, what no training view
+saw is closed by a backdrop of flat splats (:mod:`.backdrop`), inside the
+budget, so panoramas rendered in the scene have no black holes.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import torch
 from ..progress import Progress
 from ..render import render
 from ..splats import SplatScene
+from .backdrop import concatenate, unseen_backdrop
 from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
@@ -34,6 +41,7 @@ from .init import initial_points, neighbour_scales
 from .losses import fit_loss, held_out_errors
 from .model import SplatModel
 from .presets import FitConfig
+from .triangulate import triangulate_views
 
 MIN_CONTRIBUTION = 0.02
 """Pixel-equivalents of blend weight (x relative brightness) under which a splat is pruned."""
@@ -81,7 +89,7 @@ class Trainer:
         cams = [self.data.cameras[i] for i in self.train]
         imgs = [self.data.images[i] for i in self.train]
         names = [self.data.names[i] for i in self.train]
-        pts, cols, how = initial_points(self.data.model, cams, imgs, names,
+        pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
                                         min(cfg.init_points, cfg.budget), rng)
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
@@ -95,6 +103,15 @@ class Trainer:
         self.idle_rounds = 0
         self.elapsed = 0.0
         self._reset_stats()
+
+    def _init_model(self):
+        """The poses' model, with points triangulated from the views when it has none."""
+        model = self.data.model
+        if len(model.points) >= 16 or not self.cfg.triangulate or not self.data.paths:
+            return model
+        by_stem = {p.stem: p for p in self.data.paths}
+        views = {n: by_stem[Path(n).stem] for n in model.names}
+        return triangulate_views(model, views, self.progress) or model
 
     def _reset_stats(self) -> None:
         n = self.model.count
@@ -135,16 +152,23 @@ class Trainer:
                 errs.append(held_out_errors(pred, self.data.images[i]))
         return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
 
+    def _evaluate_scene(self, scene: SplatScene, views: list[int]) -> dict[str, float]:
+        errs = [held_out_errors(render(scene, self.data.cameras[i],
+                                       background=self.cfg.background).image.numpy(),
+                                self.data.images[i]) for i in views]
+        return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
+
     def active_degree(self) -> int:
         return min(self.cfg.max_sh_degree, self.step // max(self.cfg.sh_raise_every, 1))
 
     # -- densify and prune -----------------------------------------------------------
     def _densify_and_prune(self) -> None:
         cfg, m = self.cfg, self.model
-        if self.densifying and m.count < cfg.budget:
+        cap = cfg.budget - self._backdrop_reserve()
+        if self.densifying and m.count < cap:
             mean_grad = self.grad_sum / self.grad_count.clamp_min(1)
             big = mean_grad >= cfg.grad_threshold
-            room = cfg.budget - m.count
+            room = cap - m.count
             if int(big.sum()) > room:
                 top = torch.topk(torch.where(big, mean_grad, -1.0), room).indices
                 big = torch.zeros_like(big)
@@ -156,6 +180,10 @@ class Trainer:
         size = torch.exp(m.t["log_scales"].detach()).max(1).values
         m.prune((opac < cfg.min_opacity) | (size > cfg.max_scale * self.extent))
         self._reset_stats()
+
+    def _backdrop_reserve(self) -> int:
+        """Splats of the budget kept for the backdrop (a share of its tiles is unseen)."""
+        return min(self.cfg.backdrop_tiles // 2, self.cfg.budget // 10)
 
     def _prune_idle(self) -> int:
         degree = self.active_degree()
@@ -186,10 +214,12 @@ class Trainer:
             resumed = state is not None and self._restore(state)
             if state is not None and not resumed:
                 self.progress.message("checkpoint is for other settings or views; starting over")
+        init_start = time.perf_counter()
         if not resumed:
             self._fresh()
         elif self.step:
             self.progress.message(f"resuming at step {self.step}")
+        init_seconds = time.perf_counter() - init_start
         t0 = time.perf_counter() - self.elapsed
         first = int(cfg.densify_from * cfg.iterations)
         last = int(cfg.densify_until * cfg.iterations)
@@ -238,9 +268,17 @@ class Trainer:
                 save_checkpoint(self.checkpoint, self._state())
         pruned = self._prune_idle()
         degree, scores = self._choose_degree()
+        scene = self.model.to_scene(degree, {})
+        backdrop = unseen_backdrop(scene, [self.data.cameras[i] for i in self.train],
+                                   cfg.backdrop_tiles, room=cfg.budget - scene.count)
+        if backdrop.count:
+            scene = concatenate(scene, backdrop)
+            if self.held:
+                scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
         metrics = {
-            "splats": self.model.count,
+            "splats": scene.count,
+            "backdrop_splats": backdrop.count,
             "held_out_views": [self.data.names[i] for i in self.held],
             "held_out_log_lum_rmse_stops": scores["log_lum_rmse_stops"],
             "held_out_pu21_psnr": scores["pu21_psnr"],
@@ -250,6 +288,7 @@ class Trainer:
             "pruned_idle": pruned,
             "init": self.init_method,
             "fit_seconds": round(seconds, 2),
+            "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
         }
         if not self.held:
@@ -257,19 +296,27 @@ class Trainer:
         if self.checkpoint is not None:
             self.elapsed = seconds
             save_checkpoint(self.checkpoint, self._state())
-        return FitResult(scene=self.model.to_scene(degree, {}), metrics=metrics,
-                         history=self.history)
+        return FitResult(scene=scene, metrics=metrics, history=self.history)
 
 
 def fit_splats(data: FitData, config: FitConfig, seed: int = 0,
                progress: Progress | None = None, checkpoint: Path | None = None,
-               resume: bool = False, device: str = "cpu") -> FitResult:
-    """Fit splats to ``data``; see the module docstring for what stops it."""
+               resume: bool = False, device: str = "cpu", threads: int | None = None
+               ) -> FitResult:
+    """Fit splats to ``data``; see the module docstring for what stops it.
+
+    ``threads``: torch CPU threads during the fit (default: cores - 1, at least 1).
+    """
     if device != "cpu":
         (progress or Progress(quiet=True)).message(
             f"device {device!r}: the fit runs on the CPU (no GPU path is built yet)")
         device = "cpu"
     # OpenMP threads spin-wait: on a small shared machine one thread per spare
     # core is much faster than oversubscribing (measured 2-20x on 2 cores).
-    torch.set_num_threads(max(1, (os.cpu_count() or 2) - 1))
-    return Trainer(data, config, seed, progress, checkpoint, device).run(resume=resume)
+    # The caller's setting is restored afterwards.
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads or max(1, (os.cpu_count() or 2) - 1))
+    try:
+        return Trainer(data, config, seed, progress, checkpoint, device).run(resume=resume)
+    finally:
+        torch.set_num_threads(before)

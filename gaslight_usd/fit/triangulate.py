@@ -1,0 +1,77 @@
+"""Sparse points for poses that carry none, triangulated from the HDR views themselves.
+
+Given poses (a synthetic set, a capture rig, a ``transforms.json``) often come
+without points, and a fit started from guessed depths learns poor geometry.
+The HDR views are tone-mapped to 8-bit (one exposure for all views, so
+matching sees consistent brightness; sRGB encoding) and handed to
+:func:`gaslight_usd.sfm.triangulate_known_poses`, which matches SIFT features
+and triangulates them with the poses held fixed. No photos are needed.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..colmap import ColmapModel
+from ..errors import GaslightError
+from ..imageio import read_image
+from ..progress import Progress
+
+MID_GREY = 0.18
+"""Where the median luminance of all views lands after the shared exposure."""
+LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def tone_map_8bit(image: np.ndarray, scale: float) -> np.ndarray:
+    """(H, W, 3) linear HDR x ``scale`` -> sRGB-encoded uint8, highlights clipped."""
+    x = np.clip(np.asarray(image, np.float32) * scale, 0.0, 1.0)
+    v = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return np.round(v * 255.0).astype(np.uint8)
+
+
+def shared_scale(images: list[np.ndarray]) -> float:
+    """Exposure putting the median luminance of all views at mid grey."""
+    lum = np.concatenate([(im[::4, ::4] @ LUMA).ravel() for im in images])
+    median = float(np.median(lum[lum > 0])) if (lum > 0).any() else 1.0
+    return MID_GREY / median
+
+
+def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
+                      progress: Progress | None = None) -> ColmapModel | None:
+    """``model`` with points triangulated from its HDR views, or None when that fails.
+
+    ``view_paths`` maps each posed image name to its full-resolution HDR view.
+    Failure (too little texture, an image type COLMAP cannot read) is not an
+    error: the caller falls back to a points-free start.
+    """
+    import OpenImageIO as oiio
+
+    from ..sfm import triangulate_known_poses
+
+    progress = progress or Progress(quiet=True)
+    work = Path(tempfile.mkdtemp(prefix="gaslight-fit-tri-"))
+    try:
+        images = {name: read_image(view_paths[name]).pixels for name in model.names}
+        scale = shared_scale(list(images.values()))
+        for name, image in images.items():
+            target = work / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            buf = oiio.ImageBuf(np.ascontiguousarray(tone_map_8bit(image, scale)))
+            if not buf.write(str(target)):
+                progress.message(f"cannot write a tone-mapped view as {name!r}; "
+                                 "no triangulation")
+                return None
+        progress.message(f"triangulating sparse points from {len(images)} HDR views "
+                         "(poses fixed)")
+        try:
+            filled = triangulate_known_poses(work, model, progress=progress)
+        except (GaslightError, RuntimeError, ValueError) as err:
+            progress.message(f"triangulation failed ({err}); starting without points")
+            return None
+        return filled
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
