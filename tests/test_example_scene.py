@@ -82,7 +82,8 @@ def test_script_regenerates_the_scene(tmp_path):
             a, b = (read_image(p, to_space="lin_rec709") for p in (new, old))
             a_px, b_px = a.pixels / a.exposure.relative, b.pixels / b.exposure.relative
             ok = (a.pixels < 0.9) & (b.pixels < 0.9) & (b.pixels > 0.02)
-            assert np.median(np.abs(a_px[ok] - b_px[ok]) / b_px[ok]) < 0.03, rel
+            # 8-bit quantisation + render noise: ~5% median; a 1/3-stop slip would be 26%.
+            assert np.median(np.abs(a_px[ok] - b_px[ok]) / b_px[ok]) < 0.1, rel
         elif rel.endswith(".exr"):
             a, b = read_image(new).pixels, read_image(old).pixels
             rel_err = np.abs(a - b) / np.maximum(np.abs(b), 1e-3)
