@@ -20,6 +20,7 @@ from ..evaluation.metrics import log_luminance_rmse, pu21_psnr
 from ..fit import fit_splats, load_fit_data, preset
 from ..fit.synthetic import synthetic_data
 from ..imageio import read_image
+from ..locate import example_room
 from ..render.envmap import render_latlong
 from ..splats import SplatScene
 
@@ -30,7 +31,7 @@ Y = ("held_out_log_lum_rmse", "held-out log-luminance RMSE (stops)")
 HIGHER_IS_BETTER = False
 TABLE = ("seconds", "splats", "held_out_log_lum_rmse", "held_out_pu21_psnr",
          "probe_pu21_psnr", "probe_log_lum_rmse")
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "room"
+EXAMPLE = example_room()
 
 
 def _example_ready() -> bool:

@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import GaslightError, InputError
 from ..frame import align_and_compare, sfm_frame
 from ..imageio import LDR_EXTENSIONS, list_images
+from ..locate import example_room
 from ..poses import read_poses
 from ..sfm import SfmOptions, solve_poses
 
@@ -30,7 +31,7 @@ X = ("seconds", "seconds per solve (wall, whole SfM)")
 Y = ("median_rotation_error_deg", "median rotation error after alignment (degrees)")
 HIGHER_IS_BETTER = False
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "room"
+EXAMPLE = example_room()
 FULL_SETTINGS = [("exhaustive", "SIMPLE_RADIAL"), ("exhaustive", "PINHOLE"),
                  ("sequential", "SIMPLE_RADIAL")]
 QUICK_SETTINGS = [("exhaustive", "PINHOLE")]

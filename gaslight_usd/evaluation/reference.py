@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,6 +41,7 @@ from ..atomic import write_text
 from ..cameras import PinholeCamera
 from ..errors import InputError
 from ..imageio import read_image, write_exr
+from ..locate import shared_hdri_dir
 from . import curves
 from .metrics import luminance
 from .resample import area_resize, sample_latlong
@@ -55,11 +55,9 @@ MIDDLE_GREY = 0.18
 
 
 def default_hdri_dir() -> Path:
-    """``$GASLIGHT_HDRI_DIR``, else ``../shared/data/hdri`` beside the project."""
-    env = os.environ.get("GASLIGHT_HDRI_DIR")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[3] / "shared" / "data" / "hdri"
+    """``$GASLIGHT_HDRI_DIR``, else ``shared/data/hdri`` found from the working
+    directory upwards or beside the checkout (see :mod:`gaslight_usd.locate`)."""
+    return shared_hdri_dir()
 
 
 @dataclass
