@@ -189,3 +189,10 @@ def test_tone_map_for_triangulation():
     img = np.array([[[0.0, 0.5, 4.0]]], np.float32)
     # sRGB OETF of 0.5 is 0.7354 -> 188; 4.0 clips to 255.
     np.testing.assert_array_equal(tone_map_8bit(img, 1.0)[0, 0], [0, 188, 255])
+
+
+def test_cli_preset_names_match_the_presets():
+    from gaslight_usd.cli._fit import PRESET_NAMES
+    from gaslight_usd.fit import PRESETS
+
+    assert set(PRESET_NAMES) == set(PRESETS)

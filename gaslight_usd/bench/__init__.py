@@ -48,6 +48,28 @@ class Discovery:
     """Module name -> why it could not be used (import error, missing attribute)."""
 
 
+def suite_summaries() -> dict[str, str]:
+    """``{name: description}`` of every suite, read from the files without importing
+    them (suites import torch, Mitsuba...; ``--help`` must stay fast)."""
+    import ast
+
+    found: dict[str, str] = {}
+    for info in pkgutil.iter_modules(__path__):
+        if not info.name.startswith("suite_"):
+            continue
+        path = Path(__path__[0]) / f"{info.name}.py"
+        try:
+            tree = ast.parse(path.read_text())
+        except (OSError, SyntaxError):
+            continue
+        consts = {t.id: n.value.value for n in tree.body if isinstance(n, ast.Assign)
+                  for t in n.targets if isinstance(t, ast.Name)
+                  and isinstance(n.value, ast.Constant) and isinstance(n.value.value, str)}
+        if "NAME" in consts:
+            found[consts["NAME"]] = consts.get("DESCRIPTION", "")
+    return dict(sorted(found.items()))
+
+
 def discover_suites() -> Discovery:
     """Import every ``suite_*`` module here; a broken one is recorded, not raised."""
     suites: dict[str, ModuleType] = {}

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..atomic import write_text
-from ..bench import Discovery, SuiteResult, discover_suites, run_bench
+from ..bench import Discovery, SuiteResult, discover_suites, run_bench, suite_summaries
 from ..bench.runner import jsonable
 from ..errors import EXIT_FAILED, InputError
 from ._common import add_common, emit, progress_from
@@ -30,16 +30,14 @@ examples:
 """
 
 
-def _suite_lines(discovery: Discovery) -> str:
-    lines = [f"  {name:<10} {module.DESCRIPTION}" for name, module in discovery.suites.items()]
-    lines += [f"  ({module} unusable: {why})" for module, why in discovery.broken.items()]
+def _suite_lines() -> str:
+    lines = [f"  {name:<10} {text}" for name, text in suite_summaries().items()]
     return "\n".join(lines or ["  (none found)"]) + "\n"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    discovery = discover_suites()
     p = sub.add_parser("bench", help=HELP,
-                       description=DESCRIPTION.format(suites=_suite_lines(discovery)),
+                       description=DESCRIPTION.format(suites=_suite_lines()),
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--suite", action="append", metavar="NAME", default=[],
                    help="suite to run (repeatable; default: all)")
@@ -51,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REPORT_DIR",
                    help="folder for the reports (created)")
     add_common(p)
-    p.set_defaults(handler=run, discovery=discovery)
+    p.set_defaults(handler=run)
 
 
 def _format(value: Any) -> str:
@@ -80,7 +78,7 @@ def _columns(module: Any) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    discovery: Discovery = args.discovery
+    discovery: Discovery = discover_suites()
     unknown = [n for n in args.suite if n not in discovery.suites]
     if unknown:
         raise InputError(f"unknown suite(s) {', '.join(unknown)}; available: "

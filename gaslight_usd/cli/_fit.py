@@ -6,10 +6,12 @@ import argparse
 from pathlib import Path
 
 from ..chain import ChainRun
-from ..fit import PRESETS
 from ..kinds import Artifact, Kind
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
+
+# The names of gaslight_usd.fit.PRESETS, kept here so --help does not import torch.
+PRESET_NAMES = ("fast", "balanced", "best")
 
 HELP = "fit HDR Gaussian splats to posed HDR views (writes a 3DGS PLY)"
 DESCRIPTION = """\
@@ -42,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="COLMAP model folder (or transforms.json) posing the views")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="SPLATS_PLY",
                    help="3DGS PLY to write")
-    p.add_argument("--preset", choices=list(PRESETS), default="fast")
+    p.add_argument("--preset", choices=PRESET_NAMES, default="fast")
     p.add_argument("--budget", type=int, metavar="N", help="most splats to keep")
     p.add_argument("--iterations", type=int, metavar="N", help="optimisation steps")
     p.add_argument("--device", choices=("cpu", "cuda"), default="cpu",
