@@ -66,6 +66,12 @@ WINDOW_CENTER = np.array([ROOM_MAX[0] - 0.002, 1.6, 0.2])
 WINDOW_HALF = (0.7, 0.55)  # half width (along z), half height (along y)
 WINDOW_RADIANCE = 12.0 * np.array([0.78, 0.88, 1.0])  # cool daylight
 
+# No two shapes touch: Embree resolves exactly equal hit distances in an order that can
+# change from one scene build to the next, so shared edges would make renders flip a few
+# samples between runs. Objects float GAP above their supports; room surfaces overlap
+# like shingles (see scene_dict).
+GAP = 5e-4  # metres
+OVERLAP = 0.05  # metres, how far the walls reach past the room
 EMITTER_WEIGHTS = (3.0, 1.0)  # next-event estimation: how often lamp / window are picked
 PROBE_POSITIONS = np.array([[0.0, 1.5, 0.0], [1.5, 1.2, -1.0], [-1.5, 1.0, 1.2]])
 
@@ -354,29 +360,35 @@ def scene_dict(tex: dict[str, np.ndarray]) -> dict[str, Any]:
     lo, hi = ROOM_MIN, ROOM_MAX
     mid = (lo + hi) / 2
     ex, ey, ez = (hi - lo) / 2
+    # No two shapes touch (see GAP): floor and ceiling stop GAP short of the walls, the
+    # walls facing +-x stop GAP short of those facing +-z, and walls reach OVERLAP past
+    # the room so that the slits stay closed.
+    g, o = GAP, OVERLAP
     shell = {
-        "floor": (np.array([mid[0], lo[1], mid[2]]), [ex, 0, 0], [0, 0, ez]),
-        "ceiling": (np.array([mid[0], hi[1], mid[2]]), [ex, 0, 0], [0, 0, ez]),
-        "wall_back": (np.array([mid[0], mid[1], lo[2]]), [ex, 0, 0], [0, ey, 0]),
-        "wall_front": (np.array([mid[0], mid[1], hi[2]]), [ex, 0, 0], [0, ey, 0]),
-        "wall_left": (np.array([lo[0], mid[1], mid[2]]), [0, 0, ez], [0, ey, 0]),
-        "wall_right": (np.array([hi[0], mid[1], mid[2]]), [0, 0, ez], [0, ey, 0]),
+        "floor": ((mid[0], lo[1], mid[2]), (ex - g, 0, 0), (0, 0, ez - g)),
+        "ceiling": ((mid[0], hi[1], mid[2]), (ex - g, 0, 0), (0, 0, ez - g)),
+        "wall_back": ((mid[0], mid[1], lo[2]), (ex + o, 0, 0), (0, ey + o, 0)),
+        "wall_front": ((mid[0], mid[1], hi[2]), (ex + o, 0, 0), (0, ey + o, 0)),
+        "wall_left": ((lo[0], mid[1], mid[2]), (0, 0, ez - g), (0, ey + o, 0)),
+        "wall_right": ((hi[0], mid[1], mid[2]), (0, 0, ez - g), (0, ey + o, 0)),
     }
     d: dict[str, Any] = {"type": "scene"}
     for name, (c, u, v) in shell.items():
-        axes = rect_axes(c, np.array(u, float), np.array(v, float))
+        centre = np.array(c, float)
+        axes = rect_axes(centre, np.array(u, float), np.array(v, float))
         d[name] = {
             "type": "rectangle",
-            "to_world": mi.ScalarTransform4f(transform(c, axes)),
+            "to_world": mi.ScalarTransform4f(transform(centre, axes)),
             "bsdf": textured(name),
         }
 
-    boxes = {
-        "table": ((0.5, 0.375, -0.5), (0.6, 0.375, 0.4), 10.0, "table"),
-        "cabinet": ((-1.5, 0.9, -1.75), (0.5, 0.9, 0.25), 0.0, "cabinet"),
-        "crate": ((1.7, 0.25, 1.4), (0.25, 0.25, 0.25), 20.0, "crate"),
-        "box": ((0.3, 0.9, -0.45), (0.15, 0.15, 0.15), -30.0, "box"),
-        "sill": ((2.44, 1.02, 0.2), (0.06, 0.03, 0.85), 0.0, "cabinet"),
+    table_top = 0.75 + g
+    boxes = {  # name: centre, half sizes, yaw (degrees), texture; each floats GAP above
+        "table": ((0.5, 0.375 + g, -0.5), (0.6, 0.375, 0.4), 10.0, "table"),
+        "cabinet": ((-1.5, 0.9 + g, -1.75 + g), (0.5, 0.9, 0.25), 0.0, "cabinet"),
+        "crate": ((1.7, 0.25 + g, 1.4), (0.25, 0.25, 0.25), 20.0, "crate"),
+        "box": ((0.3, table_top + 0.15 + g, -0.45), (0.15, 0.15, 0.15), -30.0, "box"),
+        "sill": ((2.44 - g, 1.02 - g, 0.2), (0.06, 0.03, 0.85), 0.0, "cabinet"),
     }
     for name, (c, half, yaw, texname) in boxes.items():
         d[name] = {
@@ -386,13 +398,13 @@ def scene_dict(tex: dict[str, np.ndarray]) -> dict[str, Any]:
         }
     d["ball_red"] = {
         "type": "sphere",
-        "center": [-0.8, 0.3, 1.3],
+        "center": [-0.8, 0.3 + g, 1.3],
         "radius": 0.3,
         "bsdf": textured("ball_red"),
     }
     d["ball_blue"] = {
         "type": "sphere",
-        "center": [0.9, 0.9, -0.6],
+        "center": [0.9, table_top + 0.15 + g, -0.6],
         "radius": 0.15,
         "bsdf": textured("ball_blue"),
     }
@@ -407,8 +419,8 @@ def scene_dict(tex: dict[str, np.ndarray]) -> dict[str, Any]:
             "radiance": {"type": "rgb", "value": LAMP_RADIANCE.tolist()},
         },
     }
-    top = LAMP_CENTER + [0, LAMP_RADIUS, 0]
-    cord_to = np.array([top[0], ROOM_MAX[1], top[2]])
+    top = LAMP_CENTER + [0, LAMP_RADIUS + g, 0]
+    cord_to = np.array([top[0], ROOM_MAX[1] - g, top[2]])
     d["cord"] = {
         "type": "cylinder",
         "p0": top.tolist(),
@@ -909,7 +921,12 @@ def generate(out: Path, seed: int) -> None:
             "handedness": "right-handed",
             "origin": "room centre at floor height (floor is y = 0)",
         },
-        "room": {"min": ROOM_MIN.tolist(), "max": ROOM_MAX.tolist()},
+        "room": {
+            "min": ROOM_MIN.tolist(),
+            "max": ROOM_MAX.tolist(),
+            "contact_gap_m": GAP,
+            "note": "no two shapes touch: objects float contact_gap_m above their supports",
+        },
         "image": {
             "width": WIDTH,
             "height": HEIGHT,
