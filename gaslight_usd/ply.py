@@ -108,7 +108,8 @@ def read_ply(path: str | Path) -> SplatScene:
         if not props:
             return np.zeros((n, 0), dtype=np.float32)
         if table is not None:
-            return np.ascontiguousarray(table[:, [fields.index(p) for p in props]])
+            # np.take gathers columns several times faster than fancy indexing here
+            return np.take(table, [fields.index(p) for p in props], axis=1)
         return np.stack([np.asarray(vertex[p], dtype=np.float32) for p in props], axis=1)
 
     sh = np.empty((n, k, 3), dtype=np.float32)

@@ -29,7 +29,14 @@ Run 'gaslight2usd COMMAND --help' for each command's options and examples.
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser, or (``only``) the parser with that one subcommand registered.
+
+    Each subcommand module imports what its command needs (USD, OCIO, torch...),
+    so a run of one command registers just that one: ``export`` starts in a
+    fraction of the time the full parser takes. ``--help`` and unknown commands
+    get the full parser.
+    """
     parser = argparse.ArgumentParser(
         prog="gaslight2usd",
         description="Turn a handful of LDR photos of a set into its lighting: HDR "
@@ -40,7 +47,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {tool_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in SUBCOMMANDS:
+    for name in SUBCOMMANDS if only is None else [only]:
         try:
             module = importlib.import_module(f"{__package__}._{name}")
         except ModuleNotFoundError as exc:
@@ -53,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv and argv[0] in SUBCOMMANDS else None)
     args = parser.parse_args(argv)
     if not getattr(args, "handler", None):
         parser.print_help()
