@@ -5,7 +5,8 @@ For renderers that do not draw splats (Blender, most path tracers):
 - a splat is an *emitter* when its radiance exceeds ``threshold`` (default 1,
   the GaSLight rule), radiance being the **max channel** of its base (DC)
   colour in the working space;
-- every emitter becomes an instance of a unit icosphere ``Mesh`` prototype
+- every emitter becomes an instance of an icosphere ``Mesh`` prototype with
+  the unit sphere's surface area
   (Blender drops materials bound to implicit ``UsdGeom.Sphere`` prototypes and
   ignores per-instance primvars), so colour lives on a small palette of
   prototypes, each with its own emissive ``UsdPreviewSurface``;
@@ -87,16 +88,33 @@ def _subdivide(points: list[np.ndarray], faces: list[tuple[int, int, int]]
     return new_faces
 
 
+def area_matched_icosphere(subdivisions: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Icosphere scaled so its surface area is the unit sphere's (4 pi).
+
+    A convex emitter's mean projected area is a quarter of its surface area
+    (Cauchy), so this prototype sends the power of a unit sphere; the inscribed
+    icosphere(1) has 7.2 % less area and would make every emitter that much dimmer
+    (seen in a Cycles render of the instancer, tests/test_consumers_blender.py).
+    """
+    points, faces = icosphere(subdivisions)
+    tri = points[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]),
+                                axis=1).sum()
+    return (points * np.sqrt(4.0 * np.pi / area)).astype(np.float32), faces
+
+
 def _define_sphere_prototype(stage: Usd.Stage, path: Sdf.Path) -> UsdGeom.Mesh:
-    points, faces = icosphere(1)
+    points, faces = area_matched_icosphere(1)
+    radius = float(np.linalg.norm(points, axis=1).max())
     mesh = UsdGeom.Mesh.Define(stage, path)
     mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points))
     mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
     mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(faces.reshape(-1)))
-    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(points))
+    mesh.CreateNormalsAttr(Vt.Vec3fArray.FromNumpy(points / radius))
     mesh.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
     mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-1, -1, -1), Gf.Vec3f(1, 1, 1)]))
+    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-radius, -radius, -radius),
+                                         Gf.Vec3f(radius, radius, radius)]))
     return mesh
 
 
@@ -172,7 +190,8 @@ def write_instancer(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene,
         np.ascontiguousarray(np.roll(rot, -1, axis=1)).astype(np.float16)))
     instancer.CreateScalesAttr(Vt.Vec3fArray.FromNumpy(scales))
     if len(positions):
-        pad = scales.max(axis=1, keepdims=True)
+        reach = float(np.linalg.norm(area_matched_icosphere(1)[0], axis=1).max())
+        pad = scales.max(axis=1, keepdims=True) * reach
         extent = np.stack([(positions - pad).min(0), (positions + pad).max(0)])
     else:
         extent = np.zeros((2, 3), np.float32)
