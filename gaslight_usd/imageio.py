@@ -20,10 +20,8 @@ import OpenImageIO as oiio
 from . import colour
 from .atomic import atomic_path
 from .errors import InputError
+from .kinds import HDR_EXTENSIONS, IMAGE_EXTENSIONS, LDR_EXTENSIONS  # noqa: F401 (re-exported)
 
-LDR_EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
-HDR_EXTENSIONS = (".exr", ".hdr")
-IMAGE_EXTENSIONS = LDR_EXTENSIONS + HDR_EXTENSIONS
 HALF_MAX = 65504.0
 
 

@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError
-from .imageio import HDR_EXTENSIONS, LDR_EXTENSIONS
 
 
 class Kind(StrEnum):
@@ -54,6 +53,9 @@ DEFAULT_NAMES = {
 }
 
 USD_EXTENSIONS = (".usd", ".usda", ".usdc", ".usdz")
+LDR_EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+HDR_EXTENSIONS = (".exr", ".hdr")
+IMAGE_EXTENSIONS = LDR_EXTENSIONS + HDR_EXTENSIONS
 
 
 @dataclass

@@ -15,7 +15,6 @@ import logging
 import pkgutil
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any
 
 from .kinds import Kind
@@ -112,6 +111,8 @@ def _builtin_converters() -> list[Converter]:
 
 def _plugin_converters() -> list[Converter]:
     found: list[Converter] = []
+    from importlib.metadata import entry_points  # only when plug-ins are looked up
+
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         try:
             found.extend(_as_converters(ep.load()))
