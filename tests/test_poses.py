@@ -18,6 +18,7 @@ from gaslight_usd.frame import (
     align_and_compare,
     camera_axes,
     parse_scale_from,
+    rotation_angle_deg,
     sfm_frame,
     transform_model,
     umeyama,
@@ -244,3 +245,23 @@ def test_cli_converts_colmap_to_transforms_and_back(tmp_path):
     proc = subprocess.run(cli + ["--from", str(tmp_path / "nothing"), "-o", str(tmp_path / "x")],
                           capture_output=True, text=True)
     assert proc.returncode == 3 and "nothing" in proc.stderr
+
+
+@pytest.mark.slow
+@needs_example
+def test_fit_bench_moves_sfm_poses_into_the_true_frame(tmp_path):
+    """The fit bench's 'room-sfm' case: SfM poses in the true frame, so probe points agree."""
+    from gaslight_usd.bench.suite_fit import sfm_poses_in_true_frame
+
+    model = read_poses(sfm_poses_in_true_frame(tmp_path / "sfm", example=EXAMPLE))
+    truth = {c.name: c for c in read_poses(EXAMPLE / "sparse" / "0").cameras}
+    assert {c.name for c in model.cameras} == set(truth)
+    centre_err = [np.linalg.norm(c.center - truth[c.name].center) for c in model.cameras]
+    assert np.median(centre_err) < 0.03  # metres, in a 5 x 4 x 3 m room
+    rot_err = rotation_angle_deg(np.array([c.R for c in model.cameras]),
+                                 np.array([truth[c.name].R for c in model.cameras]))
+    assert np.median(rot_err) < 1.0
+    # the sparse points moved with the cameras: they lie inside the room
+    lo, hi = np.array([-2.6, -0.1, -2.1]), np.array([2.6, 3.1, 2.1])
+    inside = np.all((model.points > lo) & (model.points < hi), axis=1)
+    assert len(model.points) > 100 and inside.mean() > 0.95
