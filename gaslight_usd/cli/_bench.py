@@ -13,6 +13,7 @@ from ..bench import Discovery, SuiteResult, discover_suites, run_bench, suite_su
 from ..bench.runner import jsonable
 from ..errors import EXIT_FAILED, InputError
 from ._common import add_common, emit, progress_from
+from ._fit import PRESET_NAMES
 
 HELP = "measure time and accuracy of methods on ground truth; Pareto chart"
 DESCRIPTION = """\
@@ -46,6 +47,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice (0)")
     p.add_argument("--count", type=int, metavar="N",
                    help="number of cases (default: the suite's, e.g. uplift 200, quick 8)")
+    p.add_argument("--preset", action="append", choices=PRESET_NAMES, default=[],
+                   help="fit suite: fit presets to measure (repeatable; default fast and "
+                        "balanced; balanced takes about 50 min on 2 cores)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REPORT_DIR",
                    help="folder for the reports (created)")
     add_common(p)
@@ -88,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         progress.message(f"suite module {module} skipped: {why}")
     names = args.suite or list(discovery.suites)
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
-               "verbose": args.verbose}
+               "verbose": args.verbose, "presets": tuple(args.preset) or None}
     results = []
     for name in names:
         progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")
