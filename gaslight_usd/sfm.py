@@ -63,7 +63,9 @@ class SfmOptions:
     panorama: str = "auto"
     """"auto": 2:1 photos are lat-long panoramas; "on": all are; "off": none."""
     seed: int = 0
-    threads: int = -1
+    threads: int = 1
+    """COLMAP threads. 1 keeps the result the same from run to run (threaded matching
+    and mapping order their work by timing); -1 uses every core, faster on big sets."""
     verbose: bool = False
 
 
@@ -401,6 +403,7 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
         raise InputError(f"photos of the posed images are missing: {', '.join(missing[:5])}"
                          + (" ..." if len(missing) > 5 else ""), photos_dir)
     work = Path(tempfile.mkdtemp(prefix="gaslight-tri-"))
+    pycolmap.set_random_seed(opts.seed)
     try:
         db_path = work / "database.db"
         with colmap_logging(opts.verbose):

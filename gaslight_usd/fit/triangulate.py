@@ -50,7 +50,7 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
     """
     import OpenImageIO as oiio
 
-    from ..sfm import triangulate_known_poses
+    from ..sfm import SfmOptions, triangulate_known_poses
 
     progress = progress or Progress(quiet=True)
     work = Path(tempfile.mkdtemp(prefix="gaslight-fit-tri-"))
@@ -68,7 +68,11 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
         progress.message(f"triangulating sparse points from {len(images)} HDR views "
                          "(poses fixed)")
         try:
-            filled = triangulate_known_poses(work, model, progress=progress)
+            # one thread: COLMAP's threaded matching and triangulation order their
+            # work by timing, so the points (and the fit after them) would change
+            # from run to run; the fit must be deterministic for a seed
+            filled = triangulate_known_poses(work, model, SfmOptions(threads=1),
+                                             progress=progress)
         except (GaslightError, RuntimeError, ValueError) as err:
             progress.message(f"triangulation failed ({err}); starting without points")
             return None
