@@ -30,9 +30,14 @@ from gaslight_usd.uplift import (
 from gaslight_usd.uplift.fast_predictor import (
     FEATURES,
     PARAMS_FILE,
+    PARTIAL_LIMIT,
+    PROFILES,
     FastPredictor,
+    Mlp,
     RegionFeatures,
+    fill_clipped,
     peak_cap,
+    profile_weights,
     spread,
 )
 from gaslight_usd.uplift.merge import trapezoid
@@ -182,6 +187,90 @@ def test_fast_predictor_leaves_no_clipped_pixel_even_when_it_overshoots():
         for threshold in (0.9, 0.95):
             r = uplift_recursive(photo, fast, SRGB, threshold=threshold)
             assert r.stack[-1].max() < threshold
+
+
+def test_profile_mix_keeps_the_mean_and_peaks_with_the_power():
+    region = _square_region()
+    depth = region.depth[region.mask]
+    cone = profile_weights(region)
+    np.testing.assert_allclose(cone, depth / 1.4, rtol=1e-6)  # the default: the cone
+    for k, power in enumerate(PROFILES):
+        mix = np.zeros((1, len(PROFILES)))
+        mix[0, k] = 1.0
+        w = profile_weights(region, mix)
+        np.testing.assert_allclose(w, depth ** power / np.mean(depth ** power), rtol=1e-6)
+    half = np.full((1, len(PROFILES)), 1.0 / len(PROFILES))
+    w = profile_weights(region, half)
+    assert w.mean() == pytest.approx(1.0, rel=1e-6)
+    # the centre (depth 3) of the steepest shape holds 3^12 / (16 + 8 * 2^12 + 3^12) of it
+    steep = np.zeros((1, len(PROFILES)))
+    steep[0, -1] = 1.0
+    centre = profile_weights(region, steep)[depth == 3].item() / 25
+    assert PROFILES[-1] == 12.0
+    assert centre == pytest.approx(3.0 ** 12 / (16 + 8 * 2.0 ** 12 + 3.0 ** 12), rel=1e-6)
+
+
+def test_fill_clipped_bounds_a_channel_by_the_measured_ones():
+    """Hand values: one all-clipped pixel and one where only blue clips, sky-blue ring."""
+    region = _square_region(size=5, side=1)  # a single clipped pixel region, depth 1
+    mask = np.zeros((5, 5), bool)
+    mask[2, 2] = mask[2, 3] = True
+    labels = mask.astype(np.int32)
+    region = RegionFeatures(mask=mask, labels=labels, features=region.features,
+                            chroma=np.array([[0.5, 0.8, 1.0]], np.float32),
+                            depth=mask.astype(np.float32), area=np.array([2.0]))
+    encoded = np.full((5, 5, 3), 0.5, np.float32)
+    encoded[2, 2] = 1.0                      # all channels clip
+    encoded[2, 3] = [0.8, 0.9, 1.0]          # only blue clips
+    linear = SRGB.to_linear(encoded)
+    value = np.array([6.0, 6.0], np.float32)  # brightest-channel estimate of both pixels
+    ring = fill_clipped(linear, encoded, region, value)
+    np.testing.assert_allclose(ring[2, 2], [3.0, 4.8, 6.0], rtol=1e-6)  # 6 x ring colour
+    r, g = SRGB.to_linear(np.float32(0.8)), SRGB.to_linear(np.float32(0.9))
+    implied = max(r / 0.5, g / 0.8)  # what red and green say blue is, through the ring
+    np.testing.assert_allclose(ring[2, 3], [r, g, PARTIAL_LIMIT * implied], rtol=1e-5)
+    assert ring[2, 3, 2] < 6.0 / 3  # not the 6x estimate: a sky stays a sky
+    # half white: the all-clipped pixel takes (0.5 ring + 0.5 white) x 6
+    half = fill_clipped(linear, encoded, region, value, np.array([0.5], np.float32))
+    np.testing.assert_allclose(half[2, 2], [4.5, 5.4, 6.0], rtol=1e-6)
+    np.testing.assert_array_equal(half[~mask], linear[~mask])  # the rest untouched
+
+
+def test_one_output_model_renders_cones_in_the_ring_colour():
+    params = json.loads(PARAMS_FILE.read_text())["model"]
+    width = len(params["layers"][-1][1])
+    hidden = len(params["layers"][-1][0])
+    # a full model: mean, profile mix, colour share (random last layer, seeded)
+    rng = np.random.default_rng(5)
+    params["layers"][-1] = [rng.normal(size=(hidden, 2 + len(PROFILES))).tolist(),
+                            rng.normal(size=2 + len(PROFILES)).tolist()]
+    log_mean, mix, share = Mlp(params).heads(np.zeros((3, len(FEATURES)), np.float32))
+    np.testing.assert_allclose(mix.sum(axis=1), 1.0, rtol=1e-6)
+    assert np.all(mix > 0) and np.all((share > 0) & (share < 1)) and np.all(log_mean >= 0)
+    assert width in (1, 2 + len(PROFILES))  # the shipped model is one of both kinds
+    params["layers"][-1][1] = [2.0]
+    params["layers"][-1][0] = [[0.0]] * len(params["layers"][-1][0])
+    log_mean, mix, share = Mlp(params).heads(np.zeros((3, len(FEATURES)), np.float32))
+    np.testing.assert_allclose(log_mean, np.log1p(np.exp(2.0)), rtol=1e-6)
+    np.testing.assert_array_equal(mix[:, PROFILES.index(1.0)], 1.0)
+    np.testing.assert_array_equal(share, 1.0)
+
+
+def test_fast_predictor_keeps_a_sky_where_only_blue_clips():
+    """Clear sky 1.2-1.5x white in blue only: blue stays near the truth, not a blue lamp."""
+    y, x = np.mgrid[0:96, 0:128].astype(np.float32)
+    level = 1.5 - 0.9 * (y / 96) + 0.05 * np.sin(x / 15)
+    hdr = (level[..., None] * np.array([0.45, 0.62, 1.0], np.float32)).astype(np.float32)
+    photo = np.round(SRGB.to_encoded(np.clip(hdr, 0, 1)) * 255) / 255
+    clipped = photo.max(axis=-1) >= 0.99
+    assert 0.1 < clipped.mean() < 0.7 and not np.any(photo[clipped][:, :2] >= 0.99)
+    out = uplift_recursive(photo, FastPredictor(), SRGB).linear
+    blue, truth = out[clipped][:, 2], hdr[clipped][:, 2]
+    assert np.all(blue >= 0.99)  # 0.99: the merge's round trip
+    assert np.all(blue / truth < 1.25)  # never above what red and green imply (x 1.1)
+    assert np.median(np.abs(np.log2(blue / truth))) < 0.5
+    np.testing.assert_allclose(out[clipped][:, :2], SRGB.to_linear(photo)[clipped][:, :2],
+                               rtol=1e-3)
 
 
 def test_fast_predictor_stays_near_white_for_sky_that_only_just_clips():
