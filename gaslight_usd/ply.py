@@ -102,14 +102,21 @@ def read_ply(path: str | Path) -> SplatScene:
     packed_f4 = n > 0 and vertex.dtype.itemsize == 4 * len(fields) and all(
         vertex.dtype[f] == np.dtype("<f4") for f in fields)
     # All-float32 PLYs (nearly every 3DGS file): one (N, P) view, columns gathered at once.
-    table = np.asarray(vertex).view("<f4").reshape(n, len(fields)) if packed_f4 else None
+    # one sequential copy out of plyfile's memory map, then column gathers in memory
+    # (a float view copied as one block; gathering from the map or copying the
+    # structured array field by field is 3-5x slower)
+    table = (np.asarray(vertex).view("<f4").reshape(n, len(fields)).copy() if packed_f4
+             else None)
 
     def stack(props: list[str]) -> np.ndarray:
         if not props:
             return np.zeros((n, 0), dtype=np.float32)
         if table is not None:
+            cols = [fields.index(p) for p in props]
+            if cols == list(range(cols[0], cols[0] + len(cols))):  # the usual layout
+                return np.ascontiguousarray(table[:, cols[0]:cols[0] + len(cols)])
             # np.take gathers columns several times faster than fancy indexing here
-            return np.take(table, [fields.index(p) for p in props], axis=1)
+            return np.take(table, cols, axis=1)
         return np.stack([np.asarray(vertex[p], dtype=np.float32) for p in props], axis=1)
 
     sh = np.empty((n, k, 3), dtype=np.float32)
@@ -121,11 +128,13 @@ def read_ply(path: str | Path) -> SplatScene:
         positions=stack(["x", "y", "z"]),
         rotations=stack(["rot_0", "rot_1", "rot_2", "rot_3"]),
         log_scales=stack(["scale_0", "scale_1", "scale_2"]),
-        opacity_logits=np.asarray(vertex["opacity"], dtype=np.float32),
+        opacity_logits=stack(["opacity"])[:, 0].copy(),
         sh=sh,
         normals=normals,
         metadata=_parse_comments(list(data.comments)),
     )
+    if table is not None and np.isfinite(table).all():  # one pass over the file's values
+        return scene
     bad = ~np.isfinite(scene.positions).all(axis=1) | ~np.isfinite(scene.sh).all(axis=(1, 2))
     if bad.any():
         raise InputError(f"{int(bad.sum())} splat(s) have NaN or infinite values", path)

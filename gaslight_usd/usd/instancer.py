@@ -27,11 +27,8 @@ import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
 from ..splats import SplatScene
-from .palette import Palette, fit_palette
+from .palette import DEFAULT_THRESHOLD, DEFAULT_TOLERANCE, Palette, fit_palette
 
-DEFAULT_THRESHOLD = 1.0
-DEFAULT_TOLERANCE = 0.10
-"""95th percentile of per-emitter relative RGB error the palette must meet."""
 MAX_PALETTE = 64
 
 

@@ -32,7 +32,7 @@ from pxr import Usd, UsdGeom
 from .. import colour
 from ..errors import InputError
 from ..splats import SplatScene
-from . import instancer as inst
+from .palette import DEFAULT_THRESHOLD, DEFAULT_TOLERANCE
 from .particlefield import MAX_LAYER_BYTES, bytes_per_splat, chunk_ranges, write_particle_field
 from .stage import Provenance, StageFrame, new_stage, tag_layer_root
 from .validate import Finding, validate
@@ -47,8 +47,8 @@ _CHILD = {"particlefield": "Splats", "instancer": "Emitters", "rig": "Rig"}
 class ExportOptions:
     variants: tuple[str, ...] = VARIANTS
     half: bool = False
-    emit_threshold: float = inst.DEFAULT_THRESHOLD
-    palette_tolerance: float = inst.DEFAULT_TOLERANCE
+    emit_threshold: float = DEFAULT_THRESHOLD
+    palette_tolerance: float = DEFAULT_TOLERANCE
     non_emitters: str = "drop"
     rig_tolerance: float = 0.05
     probe: tuple[float, float, float] | None = None
@@ -104,6 +104,8 @@ def _write_instancer(folder: Path, stem: str, scene: SplatScene, frame: StageFra
     name = _layer_names(stem, "instancer", 1)[0]
     stage, root = new_stage(folder / name, frame, "Emitters", "Xform")
     tag_layer_root(root, prov, opts.ocio_config)
+    from . import instancer as inst  # UsdShade: only when an instancer is written
+
     report = inst.write_instancer(stage, root.GetPath(), scene, opts.emit_threshold,
                                   opts.palette_tolerance, opts.non_emitters, seed=opts.seed)
     stage.GetRootLayer().Save()
