@@ -159,22 +159,19 @@ def render_probe(scene, position: Sequence[float], path: str | Path,
     ``width // 4`` pixels square (a 90 degree face at the lat-long's
     resolution).
     """
-    from .render.envmap import cube_to_latlong, latlong_face_size, render_cube
+    from .render.envmap import render_cube, render_latlong
 
     if width < 8 or width % 2:
         raise ValueError(f"lat-long width must be an even number >= 8, got {width}")
     path = Path(path)
     pos = tuple(float(v) for v in position)
     files = ProbeFiles(position=pos)
-    size_ll = latlong_face_size(width)
-    big = render_cube(scene, pos, size_ll, device=device)
-    pano = cube_to_latlong(big, width)
+    pano = render_latlong(scene, pos, width, device=device)
     files.latlong = write_latlong(path, pano, pos, working_space, output_space, config_uri,
                                   attributes)
     if cube or faces:
         face_size = max(width // 4, 2)
-        cube_faces = big if face_size == size_ll else render_cube(scene, pos, face_size,
-                                                                  device=device)
+        cube_faces = render_cube(scene, pos, face_size, device=device)
         if cube:
             files.cube = write_cube(path.with_name(f"{path.stem}.cube{path.suffix}"),
                                     cube_faces, pos, working_space, output_space,
