@@ -106,8 +106,8 @@ def probe_scene(seed: int = 0) -> tuple[SplatScene, np.ndarray]:
     return scene, dirs
 
 
-def mitsuba_latlong(mi, ply, width: int) -> np.ndarray:
-    """Mitsuba's radiance along every lat-long pixel-centre direction from PROBE."""
+def mitsuba_latlong(mi, ply, width: int, probe: np.ndarray = PROBE) -> np.ndarray:
+    """Mitsuba's radiance along every lat-long pixel-centre direction from ``probe``."""
     import drjit as dr
 
     scene = mi.load_dict({"type": "scene", "splats": {"type": "ellipsoids",
@@ -116,7 +116,7 @@ def mitsuba_latlong(mi, ply, width: int) -> np.ndarray:
                                "max_depth": 1024})
     dirs = latlong_directions(width, width // 2).reshape(-1, 3).astype(np.float32)
     n = len(dirs)
-    origin = mi.Point3f(*[dr.full(mi.Float, float(c), n) for c in PROBE])
+    origin = mi.Point3f(*[dr.full(mi.Float, float(c), n) for c in probe])
     rays = mi.Ray3f(origin, mi.Vector3f(*[mi.Float(dirs[:, i]) for i in range(3)]))
     sampler = mi.load_dict({"type": "independent"})
     sampler.seed(0, n)
@@ -262,3 +262,30 @@ def test_mitsuba_camera_sees_our_latlong_the_right_way_round(renders):
     bright_ours = lum_ours > 0.2 * lum_ours.max()
     assert (bright_view & bright_ours).sum() > 0.8 * bright_view.sum()
     assert abs(lum_ours.sum() / lum_view.sum() - 1) < 0.08
+
+
+def test_a_closed_shell_of_large_splats_keeps_its_power(tmp_path):
+    """Inside a room the probe is surrounded by large overlapping splats, some far
+    brighter than their neighbours (a lamp, a window). Per-view depth sorting and the
+    linearised (EWA) projection both drift from Mitsuba's exact per-ray ray marching
+    there; blending 14 views keeps the light at 0.96 of Mitsuba's (six cube faces
+    alone: 0.72; without the bright cap both are 1.01)."""
+    from gaslight_usd.render.envmap import render_latlong
+
+    mi = _mitsuba()
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=(600, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    colour = 0.5 + 0.4 * d + rng.uniform(0, 0.1, (600, 3))
+    colour[d[:, 1] > 0.9] *= 20  # a bright "sky" cap
+    shell = SplatScene.from_activated(3 * d, colour, np.full((600, 3), 0.35),
+                                      np.full(600, 0.95))  # about 7 degrees each
+    probe = np.array([0.2, -0.1, 0.3])
+    width = 256
+    ply = write_ply(tmp_path / "shell.ply", shell)
+    theirs = mitsuba_latlong(mi, ply, width, probe)
+    ours = render_latlong(shell, probe, width)
+    rows = width // 2
+    solid = np.cos(np.pi * (0.5 - (np.arange(rows) + 0.5) / rows))[:, None, None]
+    ratio = float((ours * solid).sum() / (theirs * solid).sum())
+    assert 0.9 < ratio < 1.05  # measured 0.96

@@ -17,13 +17,14 @@ towards the cube's corners, each a 90 degree face camera at a size that does
 not under-sample the panorama: face size >= width / pi + 2); every direction
 blends the views whose axes lie within 40 degrees of it (one is always within
 35, where the cube alone reaches 55). Why: splats are drawn with a linearised
-(EWA) projection whose footprint grows wrong far from a view's axis (3DGS also
-clamps its Jacobian there). Against Mitsuba's ray-marched ellipsoids
-(tests/consumers/mitsuba_numbers.py, tests/consumers/README.md), a closed shell
-of overlapping 7 degree splats around the probe came out with 0.72 of
-Mitsuba's power from the cube alone and 0.96 from the 14 views, and the
-example's probe relight PSNR rose by 0.8 dB; single large splats (8 degrees)
-on a seam are still up to 1.37x too bright, on a corner 1.11x (was 1.87x).
+(EWA) projection and sorted by depth along each view's axis, both exact only
+near that axis. Against Mitsuba's per-ray ray-marched ellipsoids
+(tests/consumers/mitsuba_numbers.py and test_consumers_mitsuba.py): a closed
+shell of overlapping 7 degree splats with a 20x brighter cap gets 0.96 of
+Mitsuba's power (0.72 from the cube alone), and the example's probe relight
+PSNR rises 0.8 dB (median of 3); single isolated 8 degree splats are mixed:
+on a cube corner 1.11x (was 1.87x), on a seam 1.37x (1.35x), 30 degrees off a
+face axis 1.28x (1.12x).
 
 Splats whose centre lies behind a face, or nearer to the probe than ``near``
 along the face's axis, are skipped by that face (a splat is never clipped in
