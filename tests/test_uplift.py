@@ -362,6 +362,60 @@ def test_diffusion_plumbing_with_a_tiny_random_network():
     np.testing.assert_allclose(out, again, atol=1e-5)  # seeded
 
 
+def tiny_weights_folder(folder: Path) -> Path:
+    """A diffusers folder (unet, vae, CLIP text encoder and tokenizer, scheduler) of a
+    randomly initialised network shaped like GaSLight's, written with save_pretrained:
+    what a user's --weights folder holds, only tiny. The tokenizer's vocabulary is the
+    letters of the two prompts (no download)."""
+    import torch
+    from diffusers import StableDiffusionPipeline
+    from transformers import CLIPTextConfig, CLIPTextModel, CLIPTokenizer
+
+    from gaslight_usd.uplift.diffusion import tiny_components
+
+    parts = tiny_components()
+    letters = sorted(set("darkbright"))
+    tokens = ["<|startoftext|>", "<|endoftext|>", *letters, *(ch + "</w>" for ch in letters)]
+    (folder / "vocab.json").write_text(json.dumps({t: i for i, t in enumerate(tokens)}))
+    (folder / "merges.txt").write_text("#version: 0.2\n")
+    tokenizer = CLIPTokenizer(str(folder / "vocab.json"), str(folder / "merges.txt"),
+                              model_max_length=8)
+    torch.manual_seed(0)
+    text = CLIPTextModel(CLIPTextConfig(vocab_size=len(tokens), hidden_size=8,
+                                        intermediate_size=16, num_hidden_layers=1,
+                                        num_attention_heads=2, max_position_embeddings=8,
+                                        bos_token_id=0, eos_token_id=1, pad_token_id=1))
+    pipe = StableDiffusionPipeline(vae=parts["vae"], text_encoder=text, tokenizer=tokenizer,
+                                   unet=parts["unet"], scheduler=parts["scheduler"],
+                                   safety_checker=None, feature_extractor=None,
+                                   requires_safety_checker=False)
+    pipe.save_pretrained(str(folder / "weights"))
+    return folder / "weights"
+
+
+@pytest.mark.skipif(not __import__("gaslight_usd.uplift.diffusion", fromlist=["x"])
+                    .diffusers_available(), reason="diffusers is an optional extra")
+def test_diffusion_weights_folder_loads_and_drives_the_recursion(tmp_path, monkeypatch):
+    """The real loading path (--weights / $GASLIGHT_WEIGHTS -> from_pretrained, the
+    prompts through the tokenizer and text encoder) feeding the paper's recursion."""
+    from gaslight_usd.uplift.diffusion import ENV_WEIGHTS, DiffusionPredictor
+
+    weights = tiny_weights_folder(tmp_path)
+    monkeypatch.setenv(ENV_WEIGHTS, str(weights))
+    pred = DiffusionPredictor(device="cpu", steps=2, resolution=32)
+    assert set(pred.c["text_embeddings"]) == {"dark", "bright"}
+    assert pred.c["text_embeddings"]["dark"].shape == (1, 8, 8)  # tokens x width
+    photo = SRGB.to_encoded(np.clip(lamp_scene(size=40, peak=50.0), 0, 1))
+    result = uplift_recursive(photo, pred, SRGB, max_steps=2)
+    assert result.evs[0] == 0.0 and result.min_ev <= -2.0  # the lamp clips: at least one step
+    assert result.linear.shape == photo.shape and np.isfinite(result.linear).all()
+    again = uplift_recursive(photo, DiffusionPredictor(weights=weights, device="cpu", steps=2,
+                                                       resolution=32), SRGB, max_steps=2)
+    np.testing.assert_allclose(result.linear, again.linear, rtol=1e-5, atol=1e-6)  # seeded
+    with pytest.raises(InputError, match="no such weights"):
+        DiffusionPredictor(weights=tmp_path / "missing", device="cpu")
+
+
 def test_panorama_faces_round_trip_and_seamless_uplift():
     h, w = 64, 128
     y, x = np.mgrid[0:h, 0:w].astype(np.float32)
