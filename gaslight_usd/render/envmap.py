@@ -117,9 +117,9 @@ one within 35 degrees), weighted by (cos angle - cos BLEND_DEG)^2: no hard seams
 
 
 @lru_cache(maxsize=4)
-def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndarray, ...]], int]:
+def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndarray, ...]]]:
     """The 14 views (at the origin) and, per view, the lat-long pixels it feeds:
-    (flat pixel indices, continuous x, continuous y, weight); the view size."""
+    (flat pixel indices, continuous x, continuous y, weight)."""
     size = latlong_face_size(width)
     dirs = latlong_directions(width, width // 2).reshape(-1, 3).astype(np.float64)
     f = (size - 1) / 2.0
@@ -139,13 +139,13 @@ def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndar
         feeds.append((idx, np.clip(x, 0.5, size - 0.5), np.clip(y, 0.5, size - 0.5), w))
     feeds = [(idx, x, y, (w / total[idx]).astype(np.float32)[:, None])
              for idx, x, y, w in feeds]
-    return cams, feeds, size
+    return cams, feeds
 
 
 def render_latlong(scene: SplatScene | SplatParams, position, width: int,
                    device: str = "cpu", near: float = PROBE_NEAR) -> np.ndarray:
     """Lat-long panorama (width // 2, width, 3) float32 linear HDR from ``position``."""
-    cams, feeds, _ = _latlong_lookup(int(width))
+    cams, feeds = _latlong_lookup(int(width))
     pos = np.asarray(position, np.float64).reshape(3)
     params = _params(scene, device)
     out = np.zeros((width // 2 * width, 3), np.float32)
