@@ -166,3 +166,19 @@ def test_cli_bench_prints_baseline_medians(tmp_path, capsys):
 def test_cli_unknown_suite_is_a_bad_input(tmp_path, capsys):
     assert main(["bench", "--suite", "nope", "-o", str(tmp_path)]) == 3
     assert "unknown suite" in capsys.readouterr().err
+
+
+def test_render_suite_times_both_back_ends_on_the_same_image():
+    from gaslight_usd.bench import suite_render
+
+    rows = suite_render.run({"quick": True, "seed": 0})
+    assert [r["backend"] for r in rows] == ["numba", "torch"]
+    numba_row, torch_row = rows
+    assert numba_row["splats"] == torch_row["splats"] == 10_000
+    # the same scene composited by both: the same coverage
+    assert numba_row["mean_alpha"] == pytest.approx(torch_row["mean_alpha"], abs=1e-3)
+    assert 0.2 < numba_row["mean_alpha"] < 1.0
+    for r in rows:
+        assert r["ms_forward"] > 0 and r["ms_backward"] > 0
+    assert numba_row["speedup"] == pytest.approx(
+        torch_row["ms_forward_backward"] / numba_row["ms_forward_backward"], rel=0.02)

@@ -3,13 +3,17 @@
 Milliseconds per 256x256 forward pass and per backward pass (gradients of all
 splat parameters, SH degree 3) for 10k, 50k and 200k random splats in front of
 the camera (scales shrink with the count so the image stays similarly
-covered). Median of 3 timed runs after one warm-up; wall time on this machine
-with its torch thread count, so compare rows of one run only. Quick mode:
-10k splats, 2 runs.
+covered), for both compositing back ends (``numba``: the compiled kernels,
+the CPU default; ``torch``: vectorised torch) and tile sizes 8 and 16, with
+``speedup`` = torch / numba at the same count and tile. The times include the
+projection and SH (torch in both). Median of 3 timed runs after one warm-up
+(which also loads or compiles the kernels); wall time on this machine with its
+thread count, so compare rows of one run only. Quick mode: 10k splats, 2 runs.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from typing import Any
 
@@ -17,7 +21,7 @@ import numpy as np
 import torch
 
 from ..cameras import PinholeCamera
-from ..render import SplatParams, render
+from ..render import RASTERIZER_ENV, SplatParams, render
 from ..splats import SplatScene
 
 NAME = "render"
@@ -25,7 +29,9 @@ DESCRIPTION = "splat renderer: ms per 256x256 forward + backward pass vs splat c
 X = ("splats", "splats")
 Y = ("ms_forward_backward", "ms per 256x256 forward + backward pass")
 HIGHER_IS_BETTER = False
-TABLE = ("splats", "tile", "ms_forward", "ms_backward", "ms_forward_backward", "mean_alpha")
+TABLE = ("splats", "tile", "ms_forward", "ms_backward", "ms_forward_backward", "speedup",
+         "mean_alpha")
+BACKENDS = ("numba", "torch")
 SIZE = 256
 
 
@@ -39,8 +45,21 @@ def random_scene(n: int, rng: np.random.Generator) -> SplatScene:
     return scene
 
 
-def time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int
-                ) -> tuple[float, float, float]:
+def time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int,
+                backend: str) -> tuple[float, float, float]:
+    previous = os.environ.get(RASTERIZER_ENV)
+    os.environ[RASTERIZER_ENV] = backend
+    try:
+        return _time_render(scene, cam, tile, runs)
+    finally:
+        if previous is None:
+            os.environ.pop(RASTERIZER_ENV, None)
+        else:
+            os.environ[RASTERIZER_ENV] = previous
+
+
+def _time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int
+                 ) -> tuple[float, float, float]:
     params = SplatParams.from_scene(scene, requires_grad=True)
     fwd, bwd = [], []
     for i in range(runs + 1):
@@ -68,12 +87,20 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     for n in counts:
         scene = random_scene(n, rng)
         for tile in tiles:
-            fwd, bwd, cover = time_render(scene, cam, tile, 2 if quick else 3)
-            rows.append({"method": f"torch tiles {tile}px", "setting": f"{n // 1000}k splats",
-                         "splats": n, "tile": tile, "ms_forward": round(fwd, 1),
-                         "ms_backward": round(bwd, 1),
-                         "ms_forward_backward": round(fwd + bwd, 1),
-                         "mean_alpha": round(cover, 3), "threads": torch.get_num_threads()})
+            pair = []
+            for backend in BACKENDS:  # side by side: same scene, same moment
+                fwd, bwd, cover = time_render(scene, cam, tile, 2 if quick else 3, backend)
+                pair.append({"method": f"{backend} tiles {tile}px",
+                             "setting": f"{n // 1000}k splats", "backend": backend,
+                             "splats": n, "tile": tile, "ms_forward": round(fwd, 1),
+                             "ms_backward": round(bwd, 1),
+                             "ms_forward_backward": round(fwd + bwd, 1),
+                             "mean_alpha": round(cover, 3),
+                             "threads": torch.get_num_threads()})
+            ratio = pair[1]["ms_forward_backward"] / max(pair[0]["ms_forward_backward"], 1e-9)
+            pair[0]["speedup"] = round(ratio, 2)
+            pair[1]["speedup"] = 1.0
+            rows.extend(pair)
     return rows
 
 

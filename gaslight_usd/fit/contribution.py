@@ -5,9 +5,8 @@ from __future__ import annotations
 import torch
 
 from ..cameras import PinholeCamera
-from ..render import SplatParams
+from ..render import SplatParams, rasterizer_for
 from ..render.project import project
-from ..render.rasterize import rasterize
 
 
 def contributions(params: SplatParams, cameras: list[PinholeCamera], sh_degree: int
@@ -26,7 +25,8 @@ def contributions(params: SplatParams, cameras: list[PinholeCamera], sh_degree: 
                        sh_degree=sh_degree)
         colours = proj.colours.detach()
         proj.colours = torch.ones_like(colours, requires_grad=True)
-        image, _ = rasterize(proj, cam.width, cam.height, torch.zeros(3))
+        composite = rasterizer_for(colours.device, colours.dtype)
+        image, _ = composite(proj, cam.width, cam.height, torch.zeros(3))
         image[..., 0].sum().backward()
         w = proj.colours.grad[:, 0]
         weight.index_add_(0, proj.index, w)
