@@ -2,11 +2,15 @@
 
 Options (step "fit"): ``preset`` (fast|balanced|best), ``budget`` (most
 splats), ``iterations``, ``seed`` (default: the run's), ``device``, ``resume``
-(continue from the checkpoint beside the output), ``checkpoint`` (its path).
+(continue from the checkpoint beside the output), ``checkpoint`` (its path),
+``refine_poses`` (optimise the training views' poses too; the refined poses
+are written beside the output as a COLMAP text model, see
+:func:`refined_poses_path`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from gaslight_usd.chain import StageContext, StageResult
@@ -23,12 +27,28 @@ def checkpoint_path(output: Path) -> Path:
     return output.with_name(f".{output.name}.fit-checkpoint.pt")
 
 
+def refined_poses_path(output: Path) -> Path:
+    """Where a fit with pose refinement writes the refined poses (a COLMAP text model)."""
+    return output.with_name(f"{output.stem}.refined-poses")
+
+
+def _refined_model(data, cameras):
+    """The user's model with the fit's refined extrinsics (intrinsics and points kept)."""
+    by_stem = {name: cam for name, cam in zip(data.names, cameras, strict=True)}
+    moved = []
+    for cam in data.model.cameras:
+        new = by_stem.get(Path(cam.name).stem)
+        moved.append(cam if new is None else dataclasses.replace(cam, R=new.R, t=new.t))
+    return dataclasses.replace(data.model, cameras=moved)
+
+
 def fit(ctx: StageContext) -> StageResult:
     opts = ctx.options
     name = opts.get("preset") or "fast"
     if name not in PRESETS:
         raise InputError(f"unknown fit preset {name!r}; choose from {', '.join(PRESETS)}")
-    cfg = preset(name).updated(budget=opts.get("budget"), iterations=opts.get("iterations"))
+    cfg = preset(name).updated(budget=opts.get("budget"), iterations=opts.get("iterations"),
+                               refine_poses=bool(opts.get("refine_poses")))
     seed = int(opts.get("seed") if opts.get("seed") is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
     data = load_fit_data(hdr_dir, poses, downscale=cfg.downscale)
@@ -54,13 +74,20 @@ def fit(ctx: StageContext) -> StageResult:
     }
     result.scene.metadata = metadata
     write_ply(ctx.output, result.scene)
+    extra = {}
+    if cfg.refine_poses:
+        from gaslight_usd.poses import write_poses
+
+        refined = write_poses(refined_poses_path(ctx.output),
+                              _refined_model(data, result.cameras))
+        extra = {"refined_poses": str(refined), **result.metrics["pose_refinement"]}
     if not opts.get("keep_checkpoint"):
         ckpt.unlink(missing_ok=True)
     m = result.metrics
     return StageResult(
         metadata={"colour_space": data.colour_space, "preset": name,
                   "exposure_scale": metadata["exposure_scale"], "frame": data.model.frame,
-                  "history": result.history},
+                  "history": result.history, **extra},
         counts={"splats": m["splats"], "views": len(data.names),
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",

@@ -50,6 +50,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--device", choices=("cpu", "cuda"), default="cpu",
                    help="cpu (cuda is accepted but the fit runs on the CPU for now)")
     p.add_argument("--seed", type=int, default=0, help="random seed (the fit is deterministic)")
+    p.add_argument("--refine-poses", action="store_true",
+                   help="also optimise small corrections to the training views' poses "
+                        "(for SfM poses; the refined poses are written beside the PLY as "
+                        "SPLATS.refined-poses/, a COLMAP text model)")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint an interrupted fit left")
     add_common(p)
@@ -59,7 +63,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     out = args.output
     options = {"preset": args.preset, "budget": args.budget, "iterations": args.iterations,
-               "device": args.device, "seed": args.seed, "resume": args.resume}
+               "device": args.device, "seed": args.seed, "resume": args.resume,
+               "refine_poses": args.refine_poses}
     runner = ChainRun(out.parent if str(out.parent) else Path("."),
                       settings_from(args, device=args.device, seed=args.seed),
                       default_registry(), progress_from(args))

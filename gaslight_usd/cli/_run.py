@@ -59,6 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", choices=["fast", "balanced", "best"], default="fast",
                    help="fitting effort (default: fast)")
     p.add_argument("--budget", type=int, metavar="N", help="maximum splat count")
+    p.add_argument("--refine-poses", action="store_true",
+                   help="optimise small corrections to the training views' poses while "
+                        "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
     p.add_argument("--at", action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: the centre of the splats)")
@@ -86,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         options=step_options({
             "uplift": {"predictor": args.predictor},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
-                    "seed": args.seed},
+                    "seed": args.seed, "refine_poses": args.refine_poses or None},
             "export": {"as": args.export_as},
             "hdri": {"at": args.at, "device": args.device},
         }),

@@ -48,6 +48,12 @@ class FitConfig:
     init_opacity: float = 0.1
     backdrop_tiles: int = 3000
     """Tiles over the splats' box; those no training view sees are kept (0: no backdrop)."""
+    refine_poses: bool = False
+    """Optimise small corrections to the training views' poses with the splats."""
+    lr_pose_rotation: float = 1e-3
+    """Adam step of the pose corrections' rotation (radians)."""
+    lr_pose_translation: float = 2e-4
+    """Adam step of their translation (fraction of the scene extent)."""
     checkpoint_every: int = 200
     background: float = 0.0
     """Radiance behind the splats (0: a closed set such as a room)."""

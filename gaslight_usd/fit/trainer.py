@@ -12,6 +12,9 @@ gradient and prune. It adds no more than the scene needs:
 - the SH degree is raised step by step and the exported degree is the lowest
   whose held-out error is within 1% of the best.
 
+With ``refine_poses`` the training views' poses are corrected along with the
+splats (:mod:`.pose_refine`); held-out views keep theirs.
+
 It starts from real geometry when it can: poses without points get points
 triangulated from the HDR views (:mod:`.triangulate`), spread over the
 surfaces the views see (:mod:`.init`). After the fit, what no training view
@@ -30,6 +33,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from ..cameras import PinholeCamera
 from ..progress import Progress
 from ..render import render
 from ..splats import SplatScene
@@ -40,6 +44,7 @@ from .data import FitData
 from .init import initial_points, neighbour_scales
 from .losses import fit_loss, held_out_errors
 from .model import SplatModel
+from .pose_refine import PoseRefiner
 from .presets import FitConfig
 from .triangulate import triangulate_views
 
@@ -52,6 +57,8 @@ class FitResult:
     scene: SplatScene
     metrics: dict[str, Any]
     history: list[dict[str, Any]] = field(default_factory=list)
+    cameras: list[PinholeCamera] = field(default_factory=list)
+    """Every view's camera as the fit ended (refined poses for training views)."""
 
 
 def scene_extent(data: FitData, train: list[int]) -> float:
@@ -95,6 +102,9 @@ class Trainer:
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
         self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs)
+        self.refiner = (PoseRefiner(cams, cfg.lr_pose_rotation,
+                                    cfg.lr_pose_translation * self.extent)
+                        if cfg.refine_poses else None)
         self.step = 0
         self.init_method = how
         self.generator = torch.Generator().manual_seed(self.seed)
@@ -125,7 +135,8 @@ class Trainer:
                 "densifying": self.densifying, "last_error": self.last_error,
                 "idle_rounds": self.idle_rounds,
                 "grad_sum": self.grad_sum, "grad_count": self.grad_count,
-                "history": self.history, "elapsed": self.elapsed}
+                "history": self.history, "elapsed": self.elapsed,
+                "poses": self.refiner.state_dict() if self.refiner else None}
 
     def _restore(self, state: dict) -> bool:
         if (state.get("config") != self.cfg.as_dict() or state.get("seed") != self.seed
@@ -139,21 +150,38 @@ class Trainer:
         self.idle_rounds = state["idle_rounds"]
         self.grad_sum, self.grad_count = state["grad_sum"], state["grad_count"]
         self.history, self.elapsed = state["history"], state["elapsed"]
+        self.refiner = None
+        if state.get("poses") is not None:
+            self.refiner = PoseRefiner([self.data.cameras[i] for i in self.train],
+                                       self.cfg.lr_pose_rotation,
+                                       self.cfg.lr_pose_translation * self.extent)
+            self.refiner.load_state_dict(state["poses"])
         return True
+
+    def cameras(self) -> list[PinholeCamera]:
+        """Every view's camera now: training views with their refined poses, if refined."""
+        cams = list(self.data.cameras)
+        if self.refiner is not None:
+            refined = self.refiner.cameras([cams[i] for i in self.train])
+            for i, cam in zip(self.train, refined, strict=True):
+                cams[i] = cam
+        return cams
 
     # -- evaluation ----------------------------------------------------------------
     def evaluate(self, views: list[int], degree: int) -> dict[str, float]:
         errs = []
         params = self.model.params(degree)
+        cams = self.cameras()
         with torch.no_grad():
             for i in views:
-                pred = render(params, self.data.cameras[i], background=self.cfg.background,
+                pred = render(params, cams[i], background=self.cfg.background,
                               sh_degree=degree).image.numpy()
                 errs.append(held_out_errors(pred, self.data.images[i]))
         return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
 
     def _evaluate_scene(self, scene: SplatScene, views: list[int]) -> dict[str, float]:
-        errs = [held_out_errors(render(scene, self.data.cameras[i],
+        cams = self.cameras()
+        errs = [held_out_errors(render(scene, cams[i],
                                        background=self.cfg.background).image.numpy(),
                                 self.data.images[i]) for i in views]
         return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
@@ -187,8 +215,9 @@ class Trainer:
 
     def _prune_idle(self) -> int:
         degree = self.active_degree()
+        cams = self.cameras()
         weight, radiance = contributions(self.model.params(degree),
-                                         [self.data.cameras[i] for i in self.train], degree)
+                                         [cams[i] for i in self.train], degree)
         mean_level = float(np.mean([im.mean() for im in self.data.images])) or 1.0
         score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / mean_level, min=1.0)
         idle = score < MIN_CONTRIBUTION
@@ -228,10 +257,12 @@ class Trainer:
         while self.step < cfg.iterations:
             frac = self.step / max(cfg.iterations - 1, 1)
             self.model.set_lr("means", lr0 * (lr1 / lr0) ** frac)
-            view = self.train[_order(self.step, len(self.train), self.seed)]
+            k = _order(self.step, len(self.train), self.seed)
+            view = self.train[k]
             cam = self.data.cameras[view]
             out = render(self.model.params(self.active_degree()), cam,
-                         background=cfg.background, sh_degree=self.active_degree())
+                         background=cfg.background, sh_degree=self.active_degree(),
+                         pose=self.refiner.pose(k) if self.refiner else None)
             loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight)
             loss.backward()
             with torch.no_grad():
@@ -241,6 +272,8 @@ class Trainer:
                     self.grad_sum.index_add_(0, out.index, g.norm(dim=1))
                     self.grad_count.index_add_(0, out.index, torch.ones(len(out.index)))
             self.model.step()
+            if self.refiner is not None:
+                self.refiner.step(k)
             self.step += 1
             if first <= self.step <= last and self.step % cfg.densify_every == 0:
                 if self.held and self.densifying:
@@ -269,7 +302,8 @@ class Trainer:
         pruned = self._prune_idle()
         degree, scores = self._choose_degree()
         scene = self.model.to_scene(degree, {})
-        backdrop = unseen_backdrop(scene, [self.data.cameras[i] for i in self.train],
+        cams = self.cameras()
+        backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
                                    cfg.backdrop_tiles, room=cfg.budget - scene.count)
         if backdrop.count:
             scene = concatenate(scene, backdrop)
@@ -291,12 +325,15 @@ class Trainer:
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
         }
+        if self.refiner is not None:
+            metrics["pose_refinement"] = self.refiner.summary(
+                [self.data.cameras[i] for i in self.train])
         if not self.held:
             metrics["note"] = "no held-out views (too few views): errors are on training views"
         if self.checkpoint is not None:
             self.elapsed = seconds
             save_checkpoint(self.checkpoint, self._state())
-        return FitResult(scene=scene, metrics=metrics, history=self.history)
+        return FitResult(scene=scene, metrics=metrics, history=self.history, cameras=cams)
 
 
 def fit_splats(data: FitData, config: FitConfig, seed: int = 0,

@@ -81,15 +81,17 @@ def _background(background, device) -> torch.Tensor:
 
 
 def _project(params: SplatParams, camera: PinholeCamera, sh_degree: int | None,
-             near: float) -> Projected:
+             near: float, pose: tuple[torch.Tensor, torch.Tensor] | None = None
+             ) -> Projected:
     return project(params.means, params.quats, params.log_scales, params.opacity_logits,
-                   params.sh, camera, sh_degree=sh_degree, near=near)
+                   params.sh, camera, sh_degree=sh_degree, near=near, pose=pose)
 
 
 def render(scene_or_params: SplatScene | SplatParams, camera: PinholeCamera,
            background: float | tuple[float, float, float] | torch.Tensor = 0.0,
            sh_degree: int | None = None, near: float = DEFAULT_NEAR,
-           device: str | torch.device | None = None, tile: int = TILE) -> RenderOutput:
+           device: str | torch.device | None = None, tile: int = TILE,
+           pose: tuple[torch.Tensor, torch.Tensor] | None = None) -> RenderOutput:
     """Render splats seen by a pinhole camera (COLMAP conventions).
 
     Args:
@@ -107,6 +109,8 @@ def render(scene_or_params: SplatScene | SplatParams, camera: PinholeCamera,
             drawn whole or not at all: no clipping of splats across the plane).
         device: where to render (default: where the tensors are; CPU for a scene).
         tile: tile size in pixels.
+        pose: world-to-camera ``(R, t)`` tensors replacing the camera's pose
+            (may require grad: pose refinement); intrinsics stay the camera's.
 
     Returns:
         :class:`RenderOutput` with ``image`` (H, W, 3) float32 linear HDR
@@ -115,7 +119,7 @@ def render(scene_or_params: SplatScene | SplatParams, camera: PinholeCamera,
     params = _as_params(scene_or_params, device)
     dev = params.means.device
     bg = _background(background, dev)
-    proj = _project(params, camera, sh_degree, near)
+    proj = _project(params, camera, sh_degree, near, pose)
     if proj.means2d.requires_grad:
         proj.means2d.retain_grad()
     composite = rasterizer_for(dev, params.means.dtype)

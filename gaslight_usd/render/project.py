@@ -59,11 +59,21 @@ def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
 
 def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
             opacity_logits: torch.Tensor, sh: torch.Tensor, camera: PinholeCamera,
-            sh_degree: int | None = None, near: float = DEFAULT_NEAR) -> Projected:
-    """Project N splats into ``camera``; drop those behind it or surely off-screen."""
+            sh_degree: int | None = None, near: float = DEFAULT_NEAR,
+            pose: tuple[torch.Tensor, torch.Tensor] | None = None) -> Projected:
+    """Project N splats into ``camera``; drop those behind it or surely off-screen.
+
+    ``pose``: world-to-camera ``(R (3, 3), t (3,))`` tensors used instead of the
+    camera's own (differentiable: pose refinement); intrinsics stay the camera's.
+    """
     dev, dt = means.device, means.dtype
-    R = torch.as_tensor(camera.R, dtype=dt, device=dev)
-    t = torch.as_tensor(camera.t, dtype=dt, device=dev)
+    if pose is None:
+        R = torch.as_tensor(camera.R, dtype=dt, device=dev)
+        t = torch.as_tensor(camera.t, dtype=dt, device=dev)
+        center = torch.as_tensor(camera.center, dtype=dt, device=dev)
+    else:
+        R, t = pose
+        center = -(R.T @ t)
     with torch.no_grad():
         z_all = means @ R[2] + t[2]
         keep = z_all > near
@@ -99,7 +109,6 @@ def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
         visible = ((opac > ALPHA_MIN) & (u + ext[:, 0] > 0) & (u - ext[:, 0] < camera.width)
                    & (v + ext[:, 1] > 0) & (v - ext[:, 1] < camera.height))
         sel = torch.nonzero(visible).squeeze(1)
-    center = torch.as_tensor(camera.center, dtype=dt, device=dev)
     dirs = m[sel] - center
     dirs = dirs / dirs.norm(dim=-1, keepdim=True).clamp_min(1e-12)
     colours = eval_sh(sh[index[sel]], dirs, sh_degree)

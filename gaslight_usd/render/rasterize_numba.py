@@ -37,8 +37,8 @@ CHUNK = 4
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _forward_kernel(means2d, conics, colours, opac, splat, starts, tiles_x, tile, width,
-                    height, rgb, final_t, n_used):  # pragma: no cover - compiled
+def _forward_kernel(means2d, conics, colours, opac, log_floor, splat, starts, tiles_x, tile,
+                    width, height, rgb, final_t, n_used):  # pragma: no cover - compiled
     n_tiles = len(starts) - 1
     for t in prange(n_tiles):
         s0, s1 = starts[t], starts[t + 1]
@@ -65,6 +65,8 @@ def _forward_kernel(means2d, conics, colours, opac, splat, starts, tiles_x, tile
                     dy = py - means2d[i, 1]
                     power = (np.float32(-0.5) * (conics[i, 0] * dx * dx + conics[i, 2] * dy * dy)
                              - conics[i, 1] * dx * dy)
+                    if power < log_floor[i]:  # alpha < 1/255: no exp needed
+                        continue
                     if power > 0.0:
                         power = np.float32(0.0)
                     alpha = min(np.float32(ALPHA_MAX), opac[i] * np.exp(power))
@@ -87,8 +89,8 @@ def _forward_kernel(means2d, conics, colours, opac, splat, starts, tiles_x, tile
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def _backward_kernel(means2d, conics, colours, opac, splat, starts, tiles_x, tile, width,
-                     height, final_t, n_used, grad_rgb, grad_acc,
+def _backward_kernel(means2d, conics, colours, opac, log_floor, splat, starts, tiles_x, tile,
+                     width, height, final_t, n_used, grad_rgb, grad_acc,
                      pair_grad):  # pragma: no cover - compiled
     n_tiles = len(starts) - 1
     for t in prange(n_tiles):
@@ -121,6 +123,8 @@ def _backward_kernel(means2d, conics, colours, opac, splat, starts, tiles_x, til
                     dy = py - means2d[i, 1]
                     ca, cb, cc = conics[i, 0], conics[i, 1], conics[i, 2]
                     power = np.float32(-0.5) * (ca * dx * dx + cc * dy * dy) - cb * dx * dy
+                    if power < log_floor[i]:
+                        continue
                     flat = power > 0.0
                     if flat:
                         power = np.float32(0.0)
@@ -166,6 +170,10 @@ class _Composite(torch.autograd.Function):
     def forward(ctx, means2d, conics, colours, opacities, splat, starts, layout):
         tiles_x, tile, width, height = layout
         arrays = [_as_np(v) for v in (means2d, conics, colours, opacities)]
+        # exponent under which alpha < 1/255, a little low so rounding never skips a pixel
+        # the exact test would keep (that test still runs after the exp)
+        arrays.append((np.log(ALPHA_MIN / np.maximum(arrays[3], 1e-30)) - 1e-3).astype(
+            np.float32))
         rgb = np.zeros((height, width, 3), np.float32)
         final_t = np.ones((height, width), np.float32)
         n_used = np.zeros((height, width), np.int64)
