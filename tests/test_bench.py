@@ -182,3 +182,41 @@ def test_render_suite_times_both_back_ends_on_the_same_image():
         assert r["ms_forward"] > 0 and r["ms_backward"] > 0
     assert numba_row["speedup"] == pytest.approx(
         torch_row["ms_forward_backward"] / numba_row["ms_forward_backward"], rel=0.02)
+
+
+@needs_hdri
+def test_region_mean_oracle_keeps_each_clipped_regions_true_energy():
+    sources = reference.shared_sources()
+    pair = next(p for p in (reference.make_pair(sources[i % len(sources)], i, 0, 128, 96)
+                            for i in range(20)) if 0.01 < p.clipped_fraction < 0.5)
+    filled = suite_uplift.region_mean_oracle(pair)
+    labels, count = suite_uplift.clipped_regions(pair.ldr)
+    assert count >= 1
+    for region in range(1, count + 1):
+        inside = labels == region
+        # Flat, and the truth's mean: the region's power is exact.
+        np.testing.assert_allclose(filled[inside].mean(0), pair.truth[inside].mean(0), rtol=1e-4)
+        assert np.ptp(filled[inside], axis=0).max() == 0
+    outside = labels == 0
+    np.testing.assert_array_equal(filled[outside],
+                                  suite_uplift.ldr_baseline(pair.ldr, pair.curve)[outside])
+    assert "region-mean-oracle" in suite_uplift.REFERENCES
+
+
+@needs_hdri
+def test_true_energy_reference_rescales_the_fast_prediction_per_region():
+    from gaslight_usd.uplift.bench_methods import recursive_fast, with_true_energy
+
+    sources = reference.shared_sources()
+    pair = next(p for p in (reference.make_pair(sources[i % len(sources)], i, 0, 128, 96)
+                            for i in range(20)) if 0.01 < p.clipped_fraction < 0.5)
+    pred = recursive_fast(pair.ldr, pair.curve)
+    fixed = with_true_energy(pred, pair)
+    labels, count = suite_uplift.clipped_regions(pair.ldr)
+    for region in range(1, count + 1):
+        inside = labels == region
+        np.testing.assert_allclose(fixed[inside].mean(0), pair.truth[inside].mean(0), rtol=1e-4)
+        # Shape kept: a constant factor per channel.
+        ratio = fixed[inside] / np.maximum(pred[inside], 1e-12)
+        np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-4)
+    np.testing.assert_array_equal(fixed[labels == 0], pred[labels == 0])

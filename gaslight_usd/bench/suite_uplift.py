@@ -16,8 +16,12 @@ overrides). Per case and method:
   the photo; NaN elsewhere (left out of medians).
 
 Built-in methods: ``ldr-baseline`` (the photo through the inverse camera
-curve, no uplift) and ``oracle`` (the truth itself: the ceiling). Other
-modules add theirs with :func:`register_uplift_method`; the suite imports
+curve, no uplift), ``oracle`` (the truth itself: the ceiling) and
+``region-mean-oracle`` (every clipped region filled flat with the truth's
+mean over it: the right energy in the right place, no shape; what a
+predictor that only ever gets each region's power right can score). Other
+modules add theirs with :func:`register_uplift_method`, and ceilings that
+read the truth with :func:`register_reference_method`; the suite imports
 the optional module ``gaslight_usd.uplift.bench_methods`` and the entry
 points of group ``gaslight_usd.bench_uplift`` (each a callable taking
 ``register_uplift_method``) before it runs, so methods living there join
@@ -46,7 +50,8 @@ DESCRIPTION = "LDR -> HDR uplift on real-HDR reference pairs (relighting, PU21, 
 X = ("sec_per_mp", "uplift time (seconds per megapixel)")
 Y = ("relight_psnr", "relight PSNR (dB)")
 HIGHER_IS_BETTER = True
-REFERENCES = ("oracle",)
+REFERENCES = ["oracle"]
+"""Methods that read the truth: charted as references, kept off the Pareto front."""
 TABLE = ("sec_per_mp", "relight_psnr", "relight_mse", "relight_angle_deg", "pu21_psnr",
          "log_lum_rmse_stops", "light_power_err_stops")
 
@@ -54,6 +59,9 @@ FULL_COUNT = 200
 QUICK_COUNT = 8
 SIZES = {"quick": {"photo": (128, 96), "render": 64, "spp": 8, "env": 128},
          "full": {"photo": (256, 192), "render": 128, "spp": 16, "env": 256}}
+
+CLIP_LEVEL = 0.99
+"""Encoded level from which a pixel counts as clipped (as the fast predictor's)."""
 
 UpliftFn = Callable[[np.ndarray, str], np.ndarray]
 _METHODS: dict[str, Callable[[ReferencePair], np.ndarray]] = {}
@@ -76,8 +84,38 @@ def ldr_baseline(ldr_encoded: np.ndarray, curve: str) -> np.ndarray:
     return curves.decode(ldr_encoded, curve)
 
 
+def register_reference_method(name: str, fn: Callable[[ReferencePair], np.ndarray]) -> None:
+    """Add a ceiling: ``fn(pair) -> HDR`` may read ``pair.truth`` (charted as a reference)."""
+    _METHODS[name] = fn
+    if name not in REFERENCES:
+        REFERENCES.append(name)
+
+
+def clipped_regions(ldr_encoded: np.ndarray, level: float = CLIP_LEVEL) -> tuple[np.ndarray, int]:
+    """8-connected regions of pixels whose brightest encoded channel reaches ``level``."""
+    from scipy import ndimage
+
+    return ndimage.label(ldr_encoded.max(axis=-1) >= level, structure=np.ones((3, 3)))
+
+
+def region_mean_oracle(pair: ReferencePair) -> np.ndarray:
+    """The baseline with each clipped region set to the truth's mean over it (per channel)."""
+    from scipy import ndimage
+
+    out = ldr_baseline(pair.ldr, pair.curve).astype(np.float32)
+    labels, count = clipped_regions(pair.ldr)
+    if count:
+        inside = labels > 0
+        index = np.arange(1, count + 1)
+        for c in range(3):
+            means = np.asarray(ndimage.mean(pair.truth[..., c], labels, index), np.float32)
+            out[..., c][inside] = means[labels[inside] - 1]
+    return out
+
+
 register_uplift_method("ldr-baseline", ldr_baseline)
-_METHODS["oracle"] = lambda pair: pair.truth
+register_reference_method("oracle", lambda pair: pair.truth)
+register_reference_method("region-mean-oracle", region_mean_oracle)
 
 
 PLUGIN_MODULE = "gaslight_usd.uplift.bench_methods"

@@ -1,7 +1,11 @@
 """The uplift methods of this package, registered into ``bench --suite uplift``.
 
 Imported by :mod:`gaslight_usd.bench.suite_uplift` (its plug-in module).
-Method: ``recursive-fast`` (the paper's recursion with the fast predictor).
+Method: ``recursive-fast`` (the paper's recursion with the fast predictor),
+and the reference ``recursive-fast+true-energy`` (its output with every
+clipped region rescaled, per channel, to the truth's mean over it: the fast
+predictor's shapes with perfect energy, so the gap between the two is what
+its energy estimates cost).
 The recursion with the ``reexpose`` predictor equals ``ldr-baseline`` (tested
 in tests/test_uplift.py), so it is not benchmarked.
 
@@ -23,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bench.suite_uplift import register_uplift_method
+from ..bench.suite_uplift import clipped_regions, register_reference_method, register_uplift_method
+from ..evaluation.reference import ReferencePair
 from .calibrate import evaluation_curve
 from .fast_predictor import FastPredictor
 from .recursive import uplift_recursive
@@ -37,6 +42,27 @@ def recursive_fast(ldr: np.ndarray, curve: str) -> np.ndarray:
 
 
 register_uplift_method(METHOD, recursive_fast)
+
+
+def with_true_energy(pred: np.ndarray, pair: ReferencePair) -> np.ndarray:
+    """``pred`` with each clipped region scaled (per channel) to the truth's mean over it."""
+    from scipy import ndimage
+
+    out = np.array(pred, dtype=np.float32)
+    labels, count = clipped_regions(pair.ldr)
+    if count:
+        inside = labels > 0
+        index = np.arange(1, count + 1)
+        for c in range(3):
+            want = np.asarray(ndimage.mean(pair.truth[..., c], labels, index))
+            have = np.asarray(ndimage.mean(out[..., c], labels, index))
+            ratio = (want / np.maximum(have, 1e-12)).astype(np.float32)
+            out[..., c][inside] *= ratio[labels[inside] - 1]
+    return out
+
+
+register_reference_method(METHOD + "+true-energy",
+                          lambda pair: with_true_energy(recursive_fast(pair.ldr, pair.curve), pair))
 
 
 def worst_cases(rows: list[dict], count: int) -> list[tuple[str, float, float]]:
