@@ -13,7 +13,7 @@ from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import EXIT_BAD_INPUT, InputError
 from gaslight_usd.fit import fit_splats, load_fit_data, preset
 from gaslight_usd.fit.data import box_downscale, scale_camera
-from gaslight_usd.fit.losses import fit_loss, held_out_errors, ssim
+from gaslight_usd.fit.losses import elongation_penalty, fit_loss, held_out_errors, ssim
 from gaslight_usd.fit.synthetic import closed_scene, look_at, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
@@ -104,6 +104,35 @@ def test_fit_is_deterministic_and_resumes(synthetic, tmp_path):
         np.testing.assert_allclose(getattr(b.scene, key), getattr(a, key), atol=1e-5)
     c = fit_splats(data, cfg, seed=4).scene
     assert c.count != a.count or not np.allclose(c.positions, a.positions)
+
+
+def test_elongation_penalty_hits_needles_not_discs():
+    scales = torch.log(torch.tensor([[1.0, 0.1, 0.1],     # needle, ratio 10
+                                     [1.0, 1.0, 0.01],    # disc: not a needle
+                                     [0.2, 0.2, 0.2],     # sphere
+                                     [0.3, 0.1, 0.01]]))  # ratio 3, under the limit
+    scales.requires_grad_(True)
+    value = elongation_penalty(scales, 4.0)
+    np.testing.assert_allclose(float(value), np.log(10 / 4) / 4, rtol=1e-5)
+    value.backward()
+    # Only the needle is pushed: its long axis down, its middle axis up.
+    assert scales.grad[0, 0] > 0 and scales.grad[0, 1] < 0
+    assert torch.count_nonzero(scales.grad[1:]) == 0
+
+
+def test_elongation_weight_shortens_needles_in_a_fit(synthetic):
+    root, _, _ = synthetic
+    data = load_fit_data(root / "hdr", root / "sparse")
+
+    def excess(weight):
+        """The fitted splats' mean penalty at a low limit (a short fit makes no long needles)."""
+        cfg = tiny(iterations=120, elongation_limit=1.05, elongation_weight=weight)
+        scene = fit_splats(data, cfg, seed=0).scene
+        return float(elongation_penalty(torch.as_tensor(scene.log_scales), 1.05))
+
+    without, penalised = excess(0.0), excess(1.0)
+    assert without > 0.005
+    assert penalised < 0.5 * without
 
 
 def test_budget_caps_the_splat_count(synthetic):

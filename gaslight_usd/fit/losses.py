@@ -58,6 +58,19 @@ def fit_loss(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float = 0.2,
     return loss
 
 
+def elongation_penalty(log_scales: torch.Tensor, limit: float) -> torch.Tensor:
+    """Mean excess of ``log(largest / middle scale)`` over ``log(limit)``.
+
+    Few photos leave room for needles: a splat stretched along the rays of the
+    views that see it looks small in each of them and smears across every new
+    view (the probes' panoramas). Flat discs (one small axis) are not penalised.
+    """
+    if not len(log_scales):
+        return log_scales.sum()
+    top2 = torch.topk(log_scales, 2, dim=1).values
+    return torch.relu(top2[:, 0] - top2[:, 1] - float(np.log(limit))).mean()
+
+
 def held_out_errors(pred: np.ndarray, truth: np.ndarray) -> dict[str, float]:
     """HDR errors of a rendered view against its photo's HDR view (no exposure alignment).
 

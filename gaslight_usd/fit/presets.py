@@ -38,6 +38,10 @@ class FitConfig:
     holdout_every: int = 8
     ssim_weight: float = 0.2
     log_weight: float = 0.0
+    elongation_limit: float = 4.0
+    """Largest-to-middle scale ratio above which ``elongation_weight`` penalises a splat."""
+    elongation_weight: float = 0.0
+    """Weight of the needle penalty (:func:`.losses.elongation_penalty`; 0: off)."""
     lr_means: float = 1.6e-4
     lr_means_final: float = 1.6e-6
     lr_scales: float = 5e-3

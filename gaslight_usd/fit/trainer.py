@@ -42,7 +42,7 @@ from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
 from .init import initial_points, neighbour_scales
-from .losses import fit_loss, held_out_errors
+from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .pose_refine import PoseRefiner
 from .presets import FitConfig
@@ -264,6 +264,9 @@ class Trainer:
                          background=cfg.background, sh_degree=self.active_degree(),
                          pose=self.refiner.pose(k) if self.refiner else None)
             loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight)
+            if cfg.elongation_weight:
+                loss = loss + cfg.elongation_weight * elongation_penalty(
+                    self.model.t["log_scales"], cfg.elongation_limit)
             loss.backward()
             with torch.no_grad():
                 g = out.means2d.grad
