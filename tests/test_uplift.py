@@ -124,6 +124,21 @@ def test_fast_predictor_fills_clipped_lamp_and_keeps_the_rest():
     assert out[centre].max() >= np.percentile(out[clipped].max(axis=-1), 90)
 
 
+def test_fast_predictor_shrinks_its_estimates_towards_white():
+    from gaslight_usd.uplift.fast_predictor import SHRINK, region_features
+
+    hdr = lamp_scene(size=96, peak=400.0)
+    photo = np.round(SRGB.to_encoded(np.clip(hdr, 0, 1)) * 255) / 255
+    regions = region_features(SRGB.to_linear(photo).astype(np.float32), photo.astype(np.float32))
+    raw, shipped = FastPredictor(shrink=1.0), FastPredictor()
+    assert 0 < SHRINK < 1 and shipped.shrink == SHRINK
+    np.testing.assert_allclose(shipped.region_log_means(regions),
+                               SHRINK * raw.region_log_means(regions), rtol=1e-6)
+    clipped = photo.max(axis=-1) >= 0.99
+    energy = [uplift_recursive(photo, f, SRGB).linear[clipped].sum() for f in (shipped, raw)]
+    assert 1.0 * clipped.sum() < energy[0] < energy[1]
+
+
 def test_fast_predictor_agrees_with_itself_down_the_stack():
     hdr = lamp_scene(size=64, peak=5000.0)
     photo = SRGB.to_encoded(np.clip(hdr, 0, 1))

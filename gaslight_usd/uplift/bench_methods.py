@@ -1,7 +1,10 @@
 """The uplift methods of this package, registered into ``bench --suite uplift``.
 
 Imported by :mod:`gaslight_usd.bench.suite_uplift` (its plug-in module).
-Method: ``recursive-fast`` (the paper's recursion with the fast predictor),
+Methods: ``recursive-fast`` (the paper's recursion with the fast predictor),
+``recursive-fast-unshrunk`` (the same with its estimates not shrunk towards
+white, :data:`.fast_predictor.SHRINK`: better on the panoramas it was fitted on,
+worse on others),
 and the reference ``recursive-fast+true-energy`` (its output with every
 clipped region rescaled, per channel, to the truth's mean over it: the fast
 predictor's shapes with perfect energy, so the gap between the two is what
@@ -42,6 +45,15 @@ def recursive_fast(ldr: np.ndarray, curve: str) -> np.ndarray:
 
 
 register_uplift_method(METHOD, recursive_fast)
+
+_RAW = FastPredictor(shrink=1.0)
+
+
+def recursive_fast_unshrunk(ldr: np.ndarray, curve: str) -> np.ndarray:
+    return uplift_recursive(ldr, _RAW, evaluation_curve(curve)).linear
+
+
+register_uplift_method(METHOD + "-unshrunk", recursive_fast_unshrunk)
 
 
 def with_true_energy(pred: np.ndarray, pair: ReferencePair) -> np.ndarray:

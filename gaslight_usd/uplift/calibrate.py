@@ -63,6 +63,9 @@ from .fast_predictor import (
 EXCLUDED = ("studio",)
 GROUPS = 3
 """Regions rendered separately: the two largest, then all others together."""
+SHRINKS = (0.4, 0.55, 0.7, 0.85)
+"""Shrink factors scored beside the raw model (the predictor uses
+:data:`.fast_predictor.SHRINK`)."""
 RENDER = {"resolution": 64, "spp": 16, "env_height": 128}
 
 
@@ -290,11 +293,14 @@ def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
 
 
 def scores(data: CropSet, model_params: dict) -> dict[str, np.ndarray]:
-    """Per-crop relight PSNR of the model, the baseline and the true means."""
+    """Per-crop relight PSNR of the model (also with its log2 means times each of
+    :data:`SHRINKS`, see :data:`.fast_predictor.SHRINK`), the baseline and the true means."""
     from .fast_predictor import Mlp
 
     log_mean, mix, share = Mlp(model_params).heads(data.features)
-    return {"fast": relight_psnr(data, log_mean, mix, share).numpy(),
+    shrunk = {f"fast x{a}": relight_psnr(data, a * log_mean, mix, share).numpy()
+              for a in SHRINKS}
+    return {**shrunk, "fast": relight_psnr(data, log_mean, mix, share).numpy(),
             "baseline": relight_psnr(data, np.zeros_like(log_mean)).numpy(),
             "true_means": relight_psnr(data, data.log_mean, mix, share).numpy(),
             "true_means_cone_ring": relight_psnr(data, data.log_mean).numpy()}
