@@ -98,18 +98,22 @@ def clipped_regions(ldr_encoded: np.ndarray, level: float = CLIP_LEVEL) -> tuple
     return ndimage.label(ldr_encoded.max(axis=-1) >= level, structure=np.ones((3, 3)))
 
 
-def region_mean_oracle(pair: ReferencePair) -> np.ndarray:
-    """The baseline with each clipped region set to the truth's mean over it (per channel)."""
+def region_means(image: np.ndarray, labels: np.ndarray, count: int) -> np.ndarray:
+    """``(count, 3)`` mean of ``image`` over each labelled region (labels 1..count)."""
     from scipy import ndimage
 
+    index = np.arange(1, count + 1)
+    return np.stack([np.asarray(ndimage.mean(image[..., c], labels, index))
+                     for c in range(image.shape[-1])], axis=1)
+
+
+def region_mean_oracle(pair: ReferencePair) -> np.ndarray:
+    """The baseline with each clipped region set to the truth's mean over it (per channel)."""
     out = ldr_baseline(pair.ldr, pair.curve).astype(np.float32)
     labels, count = clipped_regions(pair.ldr)
     if count:
         inside = labels > 0
-        index = np.arange(1, count + 1)
-        for c in range(3):
-            means = np.asarray(ndimage.mean(pair.truth[..., c], labels, index), np.float32)
-            out[..., c][inside] = means[labels[inside] - 1]
+        out[inside] = region_means(pair.truth, labels, count)[labels[inside] - 1]
     return out
 
 

@@ -30,7 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bench.suite_uplift import clipped_regions, register_reference_method, register_uplift_method
+from ..bench.suite_uplift import (
+    clipped_regions,
+    region_means,
+    register_reference_method,
+    register_uplift_method,
+)
 from ..evaluation.reference import ReferencePair
 from .calibrate import evaluation_curve
 from .fast_predictor import FastPredictor
@@ -58,18 +63,13 @@ register_uplift_method(METHOD + "-unshrunk", recursive_fast_unshrunk)
 
 def with_true_energy(pred: np.ndarray, pair: ReferencePair) -> np.ndarray:
     """``pred`` with each clipped region scaled (per channel) to the truth's mean over it."""
-    from scipy import ndimage
-
     out = np.array(pred, dtype=np.float32)
     labels, count = clipped_regions(pair.ldr)
     if count:
         inside = labels > 0
-        index = np.arange(1, count + 1)
-        for c in range(3):
-            want = np.asarray(ndimage.mean(pair.truth[..., c], labels, index))
-            have = np.asarray(ndimage.mean(out[..., c], labels, index))
-            ratio = (want / np.maximum(have, 1e-12)).astype(np.float32)
-            out[..., c][inside] *= ratio[labels[inside] - 1]
+        ratio = (region_means(pair.truth, labels, count)
+                 / np.maximum(region_means(out, labels, count), 1e-12)).astype(np.float32)
+        out[inside] *= ratio[labels[inside] - 1]
     return out
 
 
