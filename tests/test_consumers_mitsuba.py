@@ -65,8 +65,10 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])
 def _mitsuba():
     """Mitsuba with the llvm_ad_rgb variant (volprim_rf_basic needs a JIT variant)."""
     try:
-        from gaslight_usd.evaluation.relight import load_mitsuba
+        from gaslight_usd.evaluation.relight import llvm_variant_usable, load_mitsuba
 
+        if not llvm_variant_usable():
+            raise RuntimeError("no libLLVM 19 (an older one would abort the process)")
         mi = load_mitsuba()
         mi.set_variant("llvm_ad_rgb")
         mi.load_dict({"type": "volprim_rf_basic"})

@@ -190,3 +190,25 @@ def test_relight_sees_a_missing_lamp(renderer):
     tinted = truth * np.array([1.0, 0.5, 0.5], np.float32)
     assert R.relight_scores(tinted, truth, renderer).angular_error_deg > 5.0
     assert renderer.variant in R.USABLE_VARIANTS
+
+
+def test_without_libllvm_19_mitsuba_falls_back_instead_of_aborting(tmp_path):
+    """With no vetted libLLVM, load_mitsuba takes scalar_rgb; Dr.Jit is never left to load an
+    older LLVM on its own (Debian 12's LLVM 15 aborts the process on the first kernel)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import os, warnings; os.environ.pop('DRJIT_LIBLLVM_PATH', None)\n"
+            "from gaslight_usd.evaluation import relight as R\n"
+            "R.LIBLLVM_CANDIDATES = ()\n"
+            "assert not R.llvm_variant_usable()\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            "    warnings.simplefilter('always')\n"
+            "    mi = R.load_mitsuba()\n"
+            "print(mi.variant(), any('libllvm19' in str(x.message) for x in w))\n")
+    env = {k: v for k, v in os.environ.items() if k != "DRJIT_LIBLLVM_PATH"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         cwd=tmp_path, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["scalar_rgb", "True"]

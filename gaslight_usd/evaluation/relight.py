@@ -90,13 +90,19 @@ def _find_libllvm() -> str | None:
     return None
 
 
+def llvm_variant_usable() -> bool:
+    """Whether ``llvm_ad_rgb`` may be used: a vetted libLLVM (19) was found or named."""
+    return bool(os.environ.get("DRJIT_LIBLLVM_PATH") or _find_libllvm())
+
+
 def load_mitsuba() -> Any:
     """Import Mitsuba with a usable RGB variant and return the module.
 
     Prefers ``llvm_ad_rgb`` (needs a recent libLLVM: Debian's libllvm19;
     ``DRJIT_LIBLLVM_PATH`` is pointed at it when unset and found), falls back
-    to the slow ``scalar_rgb`` with a warning. A variant already chosen by the
-    caller is kept when it is an RGB one.
+    to the slow ``scalar_rgb`` with a warning, also when only an older
+    libLLVM is installed (Dr.Jit would load it and abort). A variant already
+    chosen by the caller is kept when it is an RGB one.
     """
     if "DRJIT_LIBLLVM_PATH" not in os.environ:
         found = _find_libllvm()
@@ -111,6 +117,11 @@ def load_mitsuba() -> Any:
     if mi.variant() in USABLE_VARIANTS:
         return mi
     try:
+        if not os.environ.get("DRJIT_LIBLLVM_PATH"):
+            # Left to itself Dr.Jit loads whatever libLLVM it finds; an older
+            # one (Debian 12's LLVM 14/15) aborts the process ("LLVM ERROR:
+            # Cannot select") on the first kernel, which no except can catch.
+            raise RuntimeError("no libLLVM 19 found")
         if not dr.has_backend(dr.JitBackend.LLVM):
             raise RuntimeError("Dr.Jit found no usable LLVM library")
         mi.set_variant(PREFERRED_VARIANT)
