@@ -220,3 +220,19 @@ def test_true_energy_reference_rescales_the_fast_prediction_per_region():
         ratio = fixed[inside] / np.maximum(pred[inside], 1e-12)
         np.testing.assert_allclose(ratio, np.broadcast_to(ratio[0], ratio.shape), rtol=1e-4)
     np.testing.assert_array_equal(fixed[labels == 0], pred[labels == 0])
+
+
+def test_fit_suite_blurred_truth_yardstick_falls_with_the_blur():
+    """The true probes blurred by 1 and 5 px: every score worsens with the blur, and the
+    peak-anchored PU21 (truth's peak at 1000 cd/m^2) reads higher than the white-anchored."""
+    from gaslight_usd.bench import suite_fit
+
+    if not suite_fit._example_ready():
+        pytest.skip("the bundled example is not here")
+    sharp, soft = suite_fit.blurred_truth_rows(sigmas=(1.0, 5.0), relight=False)
+    assert sharp["setting"] == "sigma 1 px" and soft["setting"] == "sigma 5 px"
+    for key in ("probe_pu21_psnr", "probe_pu21_psnr_peak"):
+        assert soft[key] < sharp[key] - 3.0
+    assert soft["probe_log_lum_rmse"] > sharp["probe_log_lum_rmse"]
+    assert 24.0 < soft["probe_pu21_psnr_peak"] < 31.0  # about 27: the fit issue's yardstick
+    assert soft["probe_pu21_psnr"] < 22.0

@@ -128,6 +128,24 @@ def test_pu21_psnr_scale_mapping():
     assert M.pu21_psnr(pred, truth, align=False) == pytest.approx(expected, rel=1e-9)
 
 
+def test_pu21_psnr_peak_anchors_the_truths_peak_at_1000_nits():
+    # Truth: walls at 1, a lamp pixel at 2000 -> walls shown at 0.5 cd/m^2; a prediction one
+    # stop dark on the walls loses the PU difference between 0.5 and 0.25 cd/m^2 there.
+    truth = np.ones((4, 4, 3))
+    truth[0, 0] = 2000.0
+    pred = truth / 2
+    pred[0, 0] = 2000.0
+    diff = pu21_encode(0.5) - pu21_encode(0.25)
+    expected = 10 * math.log10(256.0 ** 2 / (diff ** 2 * 15 / 16))
+    assert M.pu21_psnr_peak(pred, truth) == pytest.approx(expected, rel=1e-9)
+    # Only the scene's own range counts: scaling both images changes nothing ...
+    assert M.pu21_psnr_peak(7 * pred, 7 * truth) == pytest.approx(expected, rel=1e-9)
+    # ... unlike the photo-white anchor, under which the same pair scores lower here.
+    assert M.pu21_psnr(pred, truth, align=False) < expected - 5
+    with pytest.raises(ValueError, match="positive"):
+        M.pu21_psnr_peak(pred, np.zeros_like(truth))
+
+
 # -- relighting (Mitsuba) ----------------------------------------------------------------
 
 @pytest.fixture(scope="module")

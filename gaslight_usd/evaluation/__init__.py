@@ -2,7 +2,8 @@
 relighting protocol (Mitsuba 3), PU21 and plain HDR errors.
 
 - :mod:`.metrics`: MSE/PSNR, log-luminance RMSE, relative L1, angular error,
-  PU21-PSNR, light-source power/peak errors in stops, exposure alignment;
+  PU21-PSNR (anchored at photo white or at the truth's peak), light-source
+  power/peak errors in stops, exposure alignment;
 - :mod:`.pu21`: the PU21 encoding (Mantiuk & Azimi, PCS 2021);
 - :mod:`.relight`: spheres on a plane lit by an HDR image, renders compared;
 - :mod:`.reference`: LDR/HDR test pairs from panoramas or any HDR image;
@@ -22,6 +23,7 @@ from .metrics import (
     mse,
     psnr,
     pu21_psnr,
+    pu21_psnr_peak,
     relative_l1,
 )
 from .pu21 import pu21_encode
@@ -33,5 +35,5 @@ __all__ = [
     "angular_error_deg", "build_pairs", "compare_renders", "decode", "encode",
     "exposure_alignment_scale", "hdr_errors", "light_source_errors", "load_source",
     "log_luminance_rmse", "make_pair", "mse", "psnr", "pu21_encode", "pu21_psnr",
-    "relative_l1", "relight_scores", "shared_sources",
+    "pu21_psnr_peak", "relative_l1", "relight_scores", "shared_sources",
 ]

@@ -28,6 +28,8 @@ ALIGN_RANGE = (0.2, 0.8)
 """Truth values used for exposure alignment (GaSLight's evaluation protocol)."""
 PU21_WHITE_NITS = 100.0
 """Relative radiance 1.0 (photo white) is shown as 100 cd/m^2 for PU21 metrics."""
+PU21_PEAK_NITS = 1000.0
+"""The truth's peak is shown at 1000 cd/m^2 (an HDR display) for :func:`pu21_psnr_peak`."""
 
 
 def luminance(rgb: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
@@ -148,6 +150,35 @@ def pu21_psnr(pred: np.ndarray, truth: np.ndarray, align: bool = True,
     p = pu21_encode(np.asarray(pred, np.float64) * scale * white_nits, variant)
     t = pu21_encode(np.asarray(truth, np.float64) * white_nits, variant)
     return psnr(p, t, peak=PSNR_PEAK)
+
+
+def pu21_psnr_peak(pred: np.ndarray, truth: np.ndarray, align: bool = False,
+                   peak_nits: float = PU21_PEAK_NITS, variant: str = "banding_glare",
+                   weights: np.ndarray | None = None) -> float:
+    """PU21-PSNR with display-referred scaling: the truth's peak luminance -> ``peak_nits``.
+
+    The second common way to give relative HDR images absolute units (HDR
+    reconstruction evaluations normalise by the reference's maximum and show
+    it on an HDR display, here 1000 cd/m^2): one scale, from the truth, for
+    both images. Unlike :func:`pu21_psnr` (white at 100 cd/m^2) it does not
+    depend on where the photo's white sits, only on the scene's own range, so
+    a room whose lamp is 2000x its walls puts the walls near 0.5 cd/m^2, where
+    PU21 is flatter. Which convention a quoted number uses matters: the
+    bundled example's probes blurred by 5 px score 17.8-19.7 dB with white at
+    100 cd/m^2 and 24.6-29.3 dB here (``gaslight2usd bench --suite fit``
+    prints both). ``align``: exposure-align ``pred`` first (off by default:
+    probes are compared in absolute units).
+    """
+    p = np.asarray(pred, np.float64)
+    t = np.asarray(truth, np.float64)
+    if align:
+        p = p * exposure_alignment_scale(p, t, weights=weights)
+    top = float(luminance(t, weights).max()) if t.size else 0.0
+    if top <= 0:
+        raise ValueError("pu21_psnr_peak needs a truth with some positive luminance")
+    scale = peak_nits / top
+    return psnr(pu21_encode(p * scale, variant), pu21_encode(t * scale, variant),
+                peak=PSNR_PEAK)
 
 
 def light_source_errors(pred: np.ndarray, truth: np.ndarray, stops_below_peak: float = 2.0,
