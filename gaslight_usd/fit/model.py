@@ -24,6 +24,9 @@ MAX_DEGREE = 3
 
 
 class SplatModel:
+    antialiased: bool = False
+    """Render in the antialiased mode (:func:`~gaslight_usd.render.project.project`)."""
+
     def __init__(self, tensors: dict[str, torch.Tensor], lrs: dict[str, float]):
         self.t = {k: tensors[k].detach().clone().requires_grad_(True) for k in NAMES}
         self.lrs = dict(lrs)
@@ -58,7 +61,8 @@ class SplatModel:
                            log_scales=self.t["log_scales"],
                            opacity_logits=self.t["opacity_logits"],
                            sh_dc=(base - 0.5) / C0,
-                           sh_rest=base[:, None, :] * self.t["sh_rel"][:, :k])
+                           sh_rest=base[:, None, :] * self.t["sh_rel"][:, :k],
+                           antialiased=self.antialiased)
 
     def to_scene(self, degree: int, metadata: dict) -> SplatScene:
         with torch.no_grad():

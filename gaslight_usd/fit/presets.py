@@ -58,6 +58,9 @@ class FitConfig:
     """Adam step of the pose corrections' rotation (radians)."""
     lr_pose_translation: float = 2e-4
     """Adam step of their translation (fraction of the scene extent)."""
+    antialiased: bool = False
+    """Fit and draw with the opacity-compensated dilation (Mip-Splatting's 2D filter): small
+    bright splats then keep their power in coarser cameras (HDRIs, probes)."""
     checkpoint_every: int = 200
     background: float = 0.0
     """Radiance behind the splats (0: a closed set such as a room)."""

@@ -102,6 +102,7 @@ class Trainer:
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
         self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs)
+        self.model.antialiased = cfg.antialiased
         self.refiner = (PoseRefiner(cams, cfg.lr_pose_rotation,
                                     cfg.lr_pose_translation * self.extent)
                         if cfg.refine_poses else None)
@@ -143,6 +144,7 @@ class Trainer:
                 or state.get("views") != self.data.names):
             return False
         self.model = SplatModel.from_state(state["model"])
+        self.model.antialiased = self.cfg.antialiased
         self.step, self.init_method = state["step"], state["init_method"]
         self.generator = torch.Generator()
         self.generator.set_state(state["generator"])

@@ -84,7 +84,8 @@ def _project(params: SplatParams, camera: PinholeCamera, sh_degree: int | None,
              near: float, pose: tuple[torch.Tensor, torch.Tensor] | None = None
              ) -> Projected:
     return project(params.means, params.quats, params.log_scales, params.opacity_logits,
-                   params.sh, camera, sh_degree=sh_degree, near=near, pose=pose)
+                   params.sh, camera, sh_degree=sh_degree, near=near, pose=pose,
+                   antialiased=params.antialiased)
 
 
 def render(scene_or_params: SplatScene | SplatParams, camera: PinholeCamera,

@@ -5,6 +5,14 @@ Sigma3 = R S S^T R^T from scale and rotation; Sigma2 = J W Sigma3 W^T J^T + 0.3 
 with J the Jacobian of the pinhole projection at the splat centre (its x/z and
 y/z clamped to 1.3x the field of view, as 3DGS does, so splats far outside the
 frame do not blow up) and the 0.3 px^2 low-pass dilation of 3DGS.
+
+``antialiased``: the dilation also scales the opacity by
+``sqrt(det Sigma2 / det(Sigma2 + 0.3 I))`` (the 2D filter of Mip-Splatting, Yu et
+al. CVPR 2024; gsplat's "antialiased" mode), so a splat's footprint integral no
+longer grows when it covers less than a pixel. Without it a cluster of tiny
+bright splats (a 5 cm lamp fitted at 0.14 deg/px) renders brighter the coarser
+the camera: 1.19x the true power at the example's probe 1, whose 512 x 256
+panorama has 0.7 deg pixels.
 """
 
 from __future__ import annotations
@@ -60,7 +68,8 @@ def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
 def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
             opacity_logits: torch.Tensor, sh: torch.Tensor, camera: PinholeCamera,
             sh_degree: int | None = None, near: float = DEFAULT_NEAR,
-            pose: tuple[torch.Tensor, torch.Tensor] | None = None) -> Projected:
+            pose: tuple[torch.Tensor, torch.Tensor] | None = None,
+            antialiased: bool = False) -> Projected:
     """Project N splats into ``camera``; drop those behind it or surely off-screen.
 
     ``pose``: world-to-camera ``(R (3, 3), t (3,))`` tensors used instead of the
@@ -102,6 +111,9 @@ def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
     det = (a * c - b * b).clamp_min(1e-12)
     conics = torch.stack([c / det, -b / det, a / det], -1)
     opac = torch.sigmoid(opacity_logits[index])
+    if antialiased:
+        det_raw = (cov[:, 0, 0] * cov[:, 1, 1] - b * b).clamp_min(0.0)
+        opac = opac * torch.sqrt(det_raw / det + 1e-12)
     with torch.no_grad():
         # Mahalanobis level where opacity * exp(-0.5 k) falls to 1/255.
         level = 2.0 * torch.log((opac * 255.0).clamp_min(1.0))
