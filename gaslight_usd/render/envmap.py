@@ -142,19 +142,54 @@ def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndar
     return cams, feeds
 
 
+SAMPLING_WIDTH = 2048
+"""Lat-long width (0.18 degree pixels) a panorama is at least drawn at before it is
+box-filtered to the width asked for (:func:`latlong_supersample`)."""
+MAX_SUPERSAMPLE = 16
+
+
+def latlong_supersample(width: int) -> int:
+    """Sub-pixels per axis for a lat-long of ``width``: its pixels are area averages.
+
+    Each lat-long pixel is drawn from ``s x s`` directions (the panorama at ``s``
+    times the width, box-filtered down), not from one lookup. Why: a fitted light
+    is a cluster of overlapping, nearly opaque splats far smaller than a coarse
+    pixel; drawn at that pixel size every splat is widened to about a pixel
+    (even with the antialiased mode's opacity compensation the cluster turns
+    from opaque to translucent, so splats hidden behind others add their light)
+    and the light gains power. Drawn at about the resolution it was fitted at
+    and averaged, it keeps it. On the example's balanced fit the lamp seen from
+    probes 1 and 2 in 512 x 256 panoramas carried 1.49x and 1.42x the true
+    power drawn once per pixel, 0.90x and 1.02x at s = 4 (in its own pinhole
+    views: 0.89-0.93x).
+    """
+    return max(1, min(MAX_SUPERSAMPLE, math.ceil(SAMPLING_WIDTH / max(int(width), 1))))
+
+
 def render_latlong(scene: SplatScene | SplatParams, position, width: int,
-                   device: str = "cpu", near: float = PROBE_NEAR) -> np.ndarray:
-    """Lat-long panorama (width // 2, width, 3) float32 linear HDR from ``position``."""
-    cams, feeds = _latlong_lookup(int(width))
+                   device: str = "cpu", near: float = PROBE_NEAR,
+                   supersample: int | None = None) -> np.ndarray:
+    """Lat-long panorama (width // 2, width, 3) float32 linear HDR from ``position``.
+
+    ``supersample``: sub-pixels per axis (default :func:`latlong_supersample`).
+    """
+    s = latlong_supersample(width) if supersample is None else max(1, int(supersample))
+    if width % 2:
+        s = 1  # an odd width's height (width // 2) has no s-fold refinement
+    fine = int(width) * s
+    cams, feeds = _latlong_lookup(fine)
     pos = np.asarray(position, np.float64).reshape(3)
     params = _params(scene, device)
-    out = np.zeros((width // 2 * width, 3), np.float32)
+    out = np.zeros((fine // 2 * fine, 3), np.float32)
     with torch.no_grad():
         for cam, (idx, x, y, w) in zip(cams, feeds, strict=True):
             placed = replace(cam, t=-np.asarray(cam.R) @ pos)
             image = render(params, placed, background=0.0, near=near).image.cpu().numpy()
             out[idx] += w * _bilinear(image, x, y, wrap_x=False)
-    return out.reshape(width // 2, width, 3)
+    out = out.reshape(fine // 2, fine, 3)
+    if s > 1:
+        out = out.reshape(width // 2, s, width, s, 3).mean(axis=(1, 3), dtype=np.float64)
+    return out.astype(np.float32)
 
 
 def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray, wrap_x: bool) -> np.ndarray:
