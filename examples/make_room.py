@@ -39,7 +39,9 @@ import OpenImageIO as oiio
 
 WIDTH, HEIGHT = 480, 360  # photo size (pixels)
 HFOV_DEG = 65.0  # horizontal field of view of the pinhole cameras
-N_VIEWS = 14
+N_VIEWS = 14  # the level ring across the room
+N_UP_VIEWS = 6  # pitched up at the ceiling (the light every probe's upper half sees)
+N_DOWN_VIEWS = 4  # pitched down at the floor around the probes
 SPP = 48  # samples per pixel for the photos / truth EXRs (stratified 8 x 6)
 BATCH = 8  # samples per pixel traced in one wavefront
 PROBE_W, PROBE_H = 512, 256
@@ -493,6 +495,28 @@ def camera_loop(n: int) -> list[Camera]:
     return cams
 
 
+def camera_pitched(n: int, pitch_deg: float, radius: tuple[float, float], height: float,
+                   phase: float) -> list[Camera]:
+    """n cameras on a smaller ellipse, looking across the room pitched by ``pitch_deg``
+    (up > 0): a set survey shoots the ceiling and the floor too, not only eye level."""
+    cams = []
+    rise = math.tan(math.radians(pitch_deg))
+    for i in range(n):
+        a = 2 * math.pi * (i + phase) / n
+        c = np.array([radius[0] * math.cos(a), height, radius[1] * math.sin(a)])
+        turn = a + math.pi + math.radians(15)
+        target = c + np.array([math.cos(turn), rise, math.sin(turn)])
+        cams.append(look_at(c, target))
+    return cams
+
+
+def camera_rig() -> list[Camera]:
+    """The example's photos: the level ring, then the ceiling and the floor views."""
+    return (camera_loop(N_VIEWS)
+            + camera_pitched(N_UP_VIEWS, 40.0, (1.2, 0.8), 1.5, 0.25)
+            + camera_pitched(N_DOWN_VIEWS, -35.0, (1.2, 0.8), 1.6, 0.5))
+
+
 def rot_to_quat(r: np.ndarray) -> np.ndarray:
     """Rotation matrix -> unit quaternion (w, x, y, z) with w >= 0."""
     m = r
@@ -823,7 +847,7 @@ def generate(out: Path, seed: int) -> None:
     timings: dict[str, float] = {"textures_and_scene_s": time.perf_counter() - t0}
     log(f"textures + scene: {timings['textures_and_scene_s']:.1f} s")
 
-    cams = camera_loop(N_VIEWS)
+    cams = camera_rig()
     fx, fy, cx, cy = intrinsics()
     views = []
     t0 = time.perf_counter()

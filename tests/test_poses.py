@@ -178,7 +178,7 @@ def test_unrelated_photos_fail_naming_them(unrelated):
 @needs_example
 @pytest.mark.slow
 def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
-    """The bundled photos plus one unrelated photo: all 14 register, the stray is named."""
+    """The bundled photos plus one unrelated photo: all of them register, the stray is named."""
     photos = tmp_path / "photos"
     photos.mkdir()
     for p in sorted((EXAMPLE / "photos").glob("*.jpg")):

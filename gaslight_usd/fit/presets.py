@@ -77,10 +77,10 @@ PRESETS: dict[str, FitConfig] = {
                       max_sh_degree=1, sh_raise_every=150, densify_every=40,
                       lr_means=4e-4, lr_colour=2e-2, lr_opacity=5e-2, checkpoint_every=100),
     "balanced": FitConfig(downscale=2, iterations=2500, budget=100_000, init_points=20_000,
-                          max_sh_degree=2, sh_raise_every=600),
+                          max_sh_degree=2, sh_raise_every=600, antialiased=True),
     "best": FitConfig(downscale=1, iterations=6000, budget=300_000, init_points=40_000,
                       max_sh_degree=3, sh_raise_every=1000, densify_until=0.5,
-                      checkpoint_every=500),
+                      checkpoint_every=500, antialiased=True),
 }
 
 
