@@ -183,3 +183,15 @@ def test_cli_auto_merges_brackets_and_refuses_single_exposures(tmp_path):
     groups.write_text(json.dumps({"v": ["only0.jpg"]}))
     r = run_cli("hdr", str(single), "-o", str(tmp_path / "y"), "--group-file", str(groups))
     assert r.returncode in (2, 3) and "no exposure brackets" in r.stderr
+
+
+def test_neighbouring_views_of_a_smooth_ceiling_are_not_a_bracket():
+    """The example's ceiling views: same size, no capture time, 1/3 EV apart by auto-exposure
+    and alike at 48 px (correlation up to 0.70) -- still separate views, no brackets."""
+    from gaslight_usd.locate import example_room
+    from gaslight_usd.uplift.bracket import find_brackets
+
+    photos = sorted((example_room() / "photos").glob("*.jpg"))
+    if not photos:
+        pytest.skip("the bundled example is not here")
+    assert find_brackets(photos, "sRGB - Texture", "ACEScg") == []
