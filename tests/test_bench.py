@@ -12,6 +12,7 @@ import types
 import numpy as np
 import OpenImageIO as oiio
 import pytest
+import torch
 
 import gaslight_usd.bench as bench
 from gaslight_usd.bench import suite_uplift
@@ -172,8 +173,12 @@ def test_render_suite_times_both_back_ends_on_the_same_image():
     from gaslight_usd.bench import suite_render
 
     rows = suite_render.run({"quick": True, "seed": 0})
-    assert [r["backend"] for r in rows] == ["numba", "torch"]
-    numba_row, torch_row = rows
+    cuda = ["cuda"] if torch.cuda.is_available() else []
+    assert [r["device"] for r in rows] == ["cpu", "cpu", *cuda]
+    assert [r["backend"] for r in rows] == ["numba", "torch", *["torch" for _ in cuda]]
+    numba_row, torch_row = rows[:2]
+    for r in rows[2:]:  # the same scene on the GPU: the same coverage
+        assert r["mean_alpha"] == pytest.approx(torch_row["mean_alpha"], abs=1e-3)
     assert numba_row["splats"] == torch_row["splats"] == 10_000
     # the same scene composited by both: the same coverage
     assert numba_row["mean_alpha"] == pytest.approx(torch_row["mean_alpha"], abs=1e-3)

@@ -309,6 +309,21 @@ def test_coarse_latlong_keeps_a_small_lights_power(direction):
     assert power(1) > 2.0 * reference
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA GPU")
+def test_gpu_panoramas_match_the_cpus():
+    rng = np.random.default_rng(3)
+    n = 2000
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    scene = SplatScene.from_activated(dirs * rng.uniform(1.5, 3.0, (n, 1)),
+                                      rng.uniform(0.1, 50.0, (n, 3)), np.full((n, 3), 0.08),
+                                      rng.uniform(0.3, 0.95, n), sh_degree=0)
+    cpu = render_latlong(scene, [0.1, 0.0, -0.2], 128)
+    gpu = render_latlong(scene, [0.1, 0.0, -0.2], 128, device="cuda")
+    assert isinstance(gpu, np.ndarray) and gpu.shape == cpu.shape == (64, 128, 3)
+    np.testing.assert_allclose(gpu, cpu, rtol=1e-3, atol=1e-4 * cpu.max())
+
+
 def test_probe_sees_splats_on_the_right_faces():
     # A bright splat along +X and a dim one along -Z, seen from the origin.
     scene = SplatScene.from_activated(np.array([[3.0, 0, 0], [0, 0, -3.0]]),

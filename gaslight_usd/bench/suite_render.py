@@ -1,11 +1,12 @@
-"""Bench suite "render": the splat renderer's speed on the CPU.
+"""Bench suite "render": the splat renderer's speed.
 
 Milliseconds per 256x256 forward pass and per backward pass (gradients of all
 splat parameters, SH degree 3) for 10k, 50k and 200k random splats in front of
 the camera (scales shrink with the count so the image stays similarly
-covered), for both compositing back ends (``numba``: the compiled kernels,
-the CPU default; ``torch``: vectorised torch) and tile sizes 8 and 16, with
-``speedup`` = torch / numba at the same count and tile. The times include the
+covered), for both compositing back ends on the CPU (``numba``: the compiled
+kernels, the CPU default; ``torch``: vectorised torch) and, where torch sees a
+GPU, the torch back end on CUDA; tile sizes 8 and 16, with ``speedup`` = the
+torch CPU time / the row's time at the same count and tile. The times include the
 projection and SH (torch in both). Median of 3 timed runs after one warm-up
 (which also loads or compiles the kernels); wall time on this machine with its
 thread count, so compare rows of one run only. Quick mode: 10k splats, 2 runs.
@@ -31,7 +32,8 @@ Y = ("ms_forward_backward", "ms per 256x256 forward + backward pass")
 HIGHER_IS_BETTER = False
 TABLE = ("splats", "tile", "ms_forward", "ms_backward", "ms_forward_backward", "speedup",
          "mean_alpha")
-BACKENDS = ("numba", "torch")
+BACKENDS = (("numba", "cpu"), ("torch", "cpu"), ("torch", "cuda"))
+"""Compositing back end and device; the CUDA rows only where torch sees a GPU."""
 SIZE = 256
 
 
@@ -46,11 +48,11 @@ def random_scene(n: int, rng: np.random.Generator) -> SplatScene:
 
 
 def time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int,
-                backend: str) -> tuple[float, float, float]:
+                backend: str, device: str = "cpu") -> tuple[float, float, float]:
     previous = os.environ.get(RASTERIZER_ENV)
     os.environ[RASTERIZER_ENV] = backend
     try:
-        return _time_render(scene, cam, tile, runs)
+        return _time_render(scene, cam, tile, runs, torch.device(device))
     finally:
         if previous is None:
             os.environ.pop(RASTERIZER_ENV, None)
@@ -58,15 +60,23 @@ def time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int,
             os.environ[RASTERIZER_ENV] = previous
 
 
-def _time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int
-                 ) -> tuple[float, float, float]:
-    params = SplatParams.from_scene(scene, requires_grad=True)
+def _time_render(scene: SplatScene, cam: PinholeCamera, tile: int, runs: int,
+                 device: torch.device) -> tuple[float, float, float]:
+    params = SplatParams.from_scene(scene, device=device, requires_grad=True)
+
+    def sync() -> None:  # GPU work is asynchronous: time it when it has finished
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
+
     fwd, bwd = [], []
     for i in range(runs + 1):
+        sync()
         t0 = time.perf_counter()
         out = render(params, cam, tile=tile)
+        sync()
         t1 = time.perf_counter()
         out.image.sum().backward()
+        sync()
         t2 = time.perf_counter()
         for v in params.tensors().values():
             v.grad = None
@@ -83,24 +93,27 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     cam = PinholeCamera(SIZE, SIZE, 220.0, 220.0, SIZE / 2, SIZE / 2, np.eye(3), np.zeros(3))
     counts = [10_000] if quick else [10_000, 50_000, 200_000]
     tiles = [8] if quick else [8, 16]
+    backends = [(b, d) for b, d in BACKENDS if d == "cpu" or torch.cuda.is_available()]
     rows = []
     for n in counts:
         scene = random_scene(n, rng)
         for tile in tiles:
-            pair = []
-            for backend in BACKENDS:  # side by side: same scene, same moment
-                fwd, bwd, cover = time_render(scene, cam, tile, 2 if quick else 3, backend)
-                pair.append({"method": f"{backend} tiles {tile}px",
-                             "setting": f"{n // 1000}k splats", "backend": backend,
-                             "splats": n, "tile": tile, "ms_forward": round(fwd, 1),
-                             "ms_backward": round(bwd, 1),
-                             "ms_forward_backward": round(fwd + bwd, 1),
-                             "mean_alpha": round(cover, 3),
-                             "threads": torch.get_num_threads()})
-            ratio = pair[1]["ms_forward_backward"] / max(pair[0]["ms_forward_backward"], 1e-9)
-            pair[0]["speedup"] = round(ratio, 2)
-            pair[1]["speedup"] = 1.0
-            rows.extend(pair)
+            group = []
+            for backend, device in backends:  # side by side: same scene, same moment
+                fwd, bwd, cover = time_render(scene, cam, tile, 2 if quick else 3, backend,
+                                              device)
+                where = "" if device == "cpu" else f" {device}"
+                group.append({"method": f"{backend}{where} tiles {tile}px",
+                              "setting": f"{n // 1000}k splats", "backend": backend,
+                              "device": device, "splats": n, "tile": tile,
+                              "ms_forward": round(fwd, 1), "ms_backward": round(bwd, 1),
+                              "ms_forward_backward": round(fwd + bwd, 1),
+                              "mean_alpha": round(cover, 3),
+                              "threads": torch.get_num_threads()})
+            torch_cpu = group[1]["ms_forward_backward"]
+            for row in group:  # speedup over the vectorised torch path on the CPU
+                row["speedup"] = round(torch_cpu / max(row["ms_forward_backward"], 1e-9), 2)
+            rows.extend(group)
     return rows
 
 

@@ -47,8 +47,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", choices=PRESET_NAMES, default="fast")
     p.add_argument("--budget", type=int, metavar="N", help="most splats to keep")
     p.add_argument("--iterations", type=int, metavar="N", help="optimisation steps")
-    p.add_argument("--device", choices=("cpu", "cuda"), default="cpu",
-                   help="cpu (cuda is accepted but the fit runs on the CPU for now)")
+    p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
+                   help="cpu (default; compiled kernels, deterministic for a seed) or cuda "
+                        "(the torch renderer on a GPU torch can see)")
     p.add_argument("--seed", type=int, default=0, help="random seed (the fit is deterministic)")
     p.add_argument("--refine-poses", action="store_true",
                    help="also optimise small corrections to the training views' poses "
@@ -61,6 +62,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..devices import resolve_device  # imports torch: not at --help time
+
+    resolve_device(args.device)
     out = args.output
     options = {"preset": args.preset, "budget": args.budget, "iterations": args.iterations,
                "device": args.device, "seed": args.seed, "resume": args.resume,

@@ -67,7 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "default: the centre of the splats)")
     p.add_argument("--as", dest="export_as", metavar="LIST",
                    help="USD forms: particlefield,instancer,rig (default: all three)")
-    p.add_argument("--device", default="cpu", help="cpu or cuda (fitting and rendering)")
+    p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
+                   help="where fitting and HDRI rendering run: cpu (default) or cuda")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fresh", action="store_true",
                    help="ignore finished stages in OUT and redo everything")
@@ -76,6 +77,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..devices import resolve_device  # imports torch: not at --help time
+
+    resolve_device(args.device)
     choose = {"uplift": f"uplift.{args.method}"} if args.method else {}
     registry = default_registry()
     for step, name in choose.items():

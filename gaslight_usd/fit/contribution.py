@@ -17,16 +17,16 @@ def contributions(params: SplatParams, cameras: list[PinholeCamera], sh_degree: 
     its compositing weights, so one backward pass per view gives both.
     """
     n = params.count
-    weight = torch.zeros(n)
-    radiance = torch.zeros(n)
     p = params.detach()
+    weight = torch.zeros(n, device=p.means.device)
+    radiance = torch.zeros(n, device=p.means.device)
     for cam in cameras:
         proj = project(p.means, p.quats, p.log_scales, p.opacity_logits, p.sh, cam,
                        sh_degree=sh_degree)
         colours = proj.colours.detach()
         proj.colours = torch.ones_like(colours, requires_grad=True)
         composite = rasterizer_for(colours.device, colours.dtype)
-        image, _ = composite(proj, cam.width, cam.height, torch.zeros(3))
+        image, _ = composite(proj, cam.width, cam.height, torch.zeros(3, device=colours.device))
         image[..., 0].sum().backward()
         w = proj.colours.grad[:, 0]
         weight.index_add_(0, proj.index, w)

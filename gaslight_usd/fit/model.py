@@ -39,7 +39,8 @@ class SplatModel:
 
     @classmethod
     def initial(cls, positions: np.ndarray, colours: np.ndarray, scales: np.ndarray,
-                opacity: float, lrs: dict[str, float]) -> SplatModel:
+                opacity: float, lrs: dict[str, float], device: str | torch.device = "cpu"
+                ) -> SplatModel:
         n = len(positions)
         f = torch.float32
         tensors = {
@@ -51,7 +52,7 @@ class SplatModel:
             "log_colour": torch.log(torch.as_tensor(colours, dtype=f).clamp_min(1e-4)),
             "sh_rel": torch.zeros(n, (MAX_DEGREE + 1) ** 2 - 1, 3),
         }
-        return cls(tensors, lrs)
+        return cls({k: v.to(device) for k, v in tensors.items()}, lrs)
 
     def params(self, degree: int = MAX_DEGREE) -> SplatParams:
         """Differentiable SplatParams (3DGS convention) at SH ``degree``."""
@@ -109,7 +110,8 @@ class SplatModel:
         rot = quat_to_rotmat(t["quats"][split])
         samples = []
         for _ in range(2):
-            noise = torch.randn(s.shape, generator=generator) * s
+            # drawn on the CPU whatever the device: the same splits on CPU and GPU
+            noise = torch.randn(s.shape, generator=generator).to(s.device) * s
             samples.append(t["means"][split] + (rot @ noise[..., None])[..., 0])
         halves = {k: v[split].repeat(2, *([1] * (v.dim() - 1))) for k, v in t.items()}
         halves["means"] = torch.cat(samples)
@@ -122,7 +124,7 @@ class SplatModel:
                 "optimizer": self.opt.state_dict(), "lrs": self.lrs}
 
     @classmethod
-    def from_state(cls, state: dict) -> SplatModel:
-        model = cls(state["tensors"], state["lrs"])
+    def from_state(cls, state: dict, device: str | torch.device = "cpu") -> SplatModel:
+        model = cls({k: v.to(device) for k, v in state["tensors"].items()}, state["lrs"])
         model.opt.load_state_dict(state["optimizer"])
         return model

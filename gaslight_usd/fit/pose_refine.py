@@ -39,14 +39,15 @@ class PoseRefiner:
     EPS = 1e-12
 
     def __init__(self, cameras: list[PinholeCamera], lr_rotation: float,
-                 lr_translation: float):
-        self.R = [torch.as_tensor(c.R, dtype=torch.float32) for c in cameras]
-        self.t = [torch.as_tensor(c.t, dtype=torch.float32) for c in cameras]
-        self.params = torch.zeros(len(cameras), 6, requires_grad=True)
+                 lr_translation: float, device: str | torch.device = "cpu"):
+        f = torch.float32
+        self.R = [torch.as_tensor(c.R, dtype=f, device=device) for c in cameras]
+        self.t = [torch.as_tensor(c.t, dtype=f, device=device) for c in cameras]
+        self.params = torch.zeros(len(cameras), 6, device=device, requires_grad=True)
         """(views, 6): axis-angle rotation (radians), then translation"""
-        self.lr = torch.tensor([lr_rotation] * 3 + [lr_translation] * 3)
-        self.moment1 = torch.zeros(len(cameras), 6)
-        self.moment2 = torch.zeros(len(cameras), 6)
+        self.lr = torch.tensor([lr_rotation] * 3 + [lr_translation] * 3, device=device)
+        self.moment1 = torch.zeros(len(cameras), 6, device=device)
+        self.moment2 = torch.zeros(len(cameras), 6, device=device)
         self.steps = torch.zeros(len(cameras), dtype=torch.long)
 
     @property
@@ -82,13 +83,14 @@ class PoseRefiner:
             for k, cam in enumerate(cameras):
                 R, t = self.pose(k)
                 out.append(PinholeCamera(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy,
-                                         R.double().numpy(), t.double().numpy(), cam.name))
+                                         R.double().cpu().numpy(), t.double().cpu().numpy(),
+                                         cam.name))
         return out
 
     def summary(self, cameras: list[PinholeCamera]) -> dict[str, float]:
         """How far the corrections moved the views: rotation (degrees) and centre shift."""
         with torch.no_grad():
-            angles = np.degrees(self.rotation.norm(dim=1).numpy())
+            angles = np.degrees(self.rotation.norm(dim=1).cpu().numpy())
         before = np.array([c.center for c in cameras])
         after = np.array([c.center for c in self.cameras(cameras)])
         shift = np.linalg.norm(after - before, axis=1)
@@ -99,13 +101,15 @@ class PoseRefiner:
                 "centre_shift_max": round(float(shift.max()), 5)}
 
     def state_dict(self) -> dict:
-        return {"params": self.params.detach().clone(), "moment1": self.moment1.clone(),
-                "moment2": self.moment2.clone(), "steps": self.steps.clone()}
+        return {"params": self.params.detach().cpu().clone(),
+                "moment1": self.moment1.cpu().clone(), "moment2": self.moment2.cpu().clone(),
+                "steps": self.steps.clone()}
 
     def load_state_dict(self, state: dict) -> None:
         with torch.no_grad():
             self.params.copy_(state["params"])
-        self.moment1, self.moment2 = state["moment1"].clone(), state["moment2"].clone()
+        dev = self.params.device
+        self.moment1, self.moment2 = state["moment1"].to(dev), state["moment2"].to(dev)
         self.steps = state["steps"].clone()
 
 

@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from ..cameras import PinholeCamera
+from ..devices import resolve_device
 from ..progress import Progress
 from ..render import render
 from ..splats import SplatScene
@@ -78,7 +79,7 @@ def _order(step: int, n: int, seed: int) -> int:
 class Trainer:
     def __init__(self, data: FitData, config: FitConfig, seed: int = 0,
                  progress: Progress | None = None, checkpoint: Path | None = None,
-                 device: str = "cpu"):
+                 device: str | torch.device = "cpu"):
         self.data, self.cfg, self.seed = data, config, seed
         self.progress = progress or Progress(quiet=True)
         self.checkpoint = Path(checkpoint) if checkpoint else None
@@ -101,10 +102,11 @@ class Trainer:
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
-        self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs)
+        self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs,
+                                        self.device)
         self.model.antialiased = cfg.antialiased
         self.refiner = (PoseRefiner(cams, cfg.lr_pose_rotation,
-                                    cfg.lr_pose_translation * self.extent)
+                                    cfg.lr_pose_translation * self.extent, self.device)
                         if cfg.refine_poses else None)
         self.step = 0
         self.init_method = how
@@ -126,8 +128,8 @@ class Trainer:
 
     def _reset_stats(self) -> None:
         n = self.model.count
-        self.grad_sum = torch.zeros(n)
-        self.grad_count = torch.zeros(n)
+        self.grad_sum = torch.zeros(n, device=self.device)
+        self.grad_count = torch.zeros(n, device=self.device)
 
     def _state(self) -> dict:
         return {"model": self.model.state_dict(), "step": self.step, "seed": self.seed,
@@ -143,20 +145,22 @@ class Trainer:
         if (state.get("config") != self.cfg.as_dict() or state.get("seed") != self.seed
                 or state.get("views") != self.data.names):
             return False
-        self.model = SplatModel.from_state(state["model"])
+        self.model = SplatModel.from_state(state["model"], self.device)
         self.model.antialiased = self.cfg.antialiased
         self.step, self.init_method = state["step"], state["init_method"]
         self.generator = torch.Generator()
         self.generator.set_state(state["generator"])
         self.densifying, self.last_error = state["densifying"], state["last_error"]
         self.idle_rounds = state["idle_rounds"]
-        self.grad_sum, self.grad_count = state["grad_sum"], state["grad_count"]
+        self.grad_sum = state["grad_sum"].to(self.device)
+        self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
         self.refiner = None
         if state.get("poses") is not None:
             self.refiner = PoseRefiner([self.data.cameras[i] for i in self.train],
                                        self.cfg.lr_pose_rotation,
-                                       self.cfg.lr_pose_translation * self.extent)
+                                       self.cfg.lr_pose_translation * self.extent,
+                                       self.device)
             self.refiner.load_state_dict(state["poses"])
         return True
 
@@ -177,14 +181,14 @@ class Trainer:
         with torch.no_grad():
             for i in views:
                 pred = render(params, cams[i], background=self.cfg.background,
-                              sh_degree=degree).image.numpy()
+                              sh_degree=degree).image.cpu().numpy()
                 errs.append(held_out_errors(pred, self.data.images[i]))
         return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
 
     def _evaluate_scene(self, scene: SplatScene, views: list[int]) -> dict[str, float]:
         cams = self.cameras()
-        errs = [held_out_errors(render(scene, cams[i],
-                                       background=self.cfg.background).image.numpy(),
+        errs = [held_out_errors(render(scene, cams[i], background=self.cfg.background,
+                                       device=self.device).image.cpu().numpy(),
                                 self.data.images[i]) for i in views]
         return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
 
@@ -273,9 +277,10 @@ class Trainer:
             with torch.no_grad():
                 g = out.means2d.grad
                 if g is not None and len(g):
-                    g = g * torch.tensor([cam.width / 2.0, cam.height / 2.0])
+                    g = g * torch.tensor([cam.width / 2.0, cam.height / 2.0], device=g.device)
                     self.grad_sum.index_add_(0, out.index, g.norm(dim=1))
-                    self.grad_count.index_add_(0, out.index, torch.ones(len(out.index)))
+                    self.grad_count.index_add_(0, out.index,
+                                               torch.ones(len(out.index), device=g.device))
             self.model.step()
             if self.refiner is not None:
                 self.refiner.step(k)
@@ -348,17 +353,17 @@ def fit_splats(data: FitData, config: FitConfig, seed: int = 0,
     """Fit splats to ``data``; see the module docstring for what stops it.
 
     ``threads``: torch CPU threads during the fit (default: cores - 1, at least 1).
+    ``device``: ``cpu`` (compiled kernels; deterministic for a seed) or ``cuda``
+    (the torch renderer on the GPU; its scatter-adds make runs differ in the
+    last bits, so two GPU fits agree closely, not exactly).
     """
-    if device != "cpu":
-        (progress or Progress(quiet=True)).message(
-            f"device {device!r}: the fit runs on the CPU (no GPU path is built yet)")
-        device = "cpu"
+    dev = resolve_device(device)
     # OpenMP threads spin-wait: on a small shared machine one thread per spare
     # core is much faster than oversubscribing (measured 2-20x on 2 cores).
     # The caller's setting is restored afterwards.
     before = torch.get_num_threads()
     torch.set_num_threads(threads or max(1, (os.cpu_count() or 2) - 1))
     try:
-        return Trainer(data, config, seed, progress, checkpoint, device).run(resume=resume)
+        return Trainer(data, config, seed, progress, checkpoint, dev).run(resume=resume)
     finally:
         torch.set_num_threads(before)
