@@ -206,6 +206,19 @@ def test_region_mean_oracle_keeps_each_clipped_regions_true_energy():
     np.testing.assert_array_equal(filled[outside],
                                   suite_uplift.ldr_baseline(pair.ldr, pair.curve)[outside])
     assert "region-mean-oracle" in suite_uplift.REFERENCES
+    # Half a stop over: every region's mean doubles by sqrt(2), unclipped pixels untouched.
+    over = suite_uplift.region_mean_oracle(pair, 0.5)
+    for region in range(1, count + 1):
+        inside = labels == region
+        np.testing.assert_allclose(over[inside].mean(0), filled[inside].mean(0) * 2 ** 0.5,
+                                   rtol=1e-4)
+    np.testing.assert_array_equal(over[outside], filled[outside])
+    # Under: never below what the photo itself shows there.
+    under = suite_uplift.region_mean_oracle(pair, -8.0)
+    baseline = suite_uplift.ldr_baseline(pair.ldr, pair.curve)
+    np.testing.assert_allclose(under, np.maximum(filled * 2.0 ** -8, baseline), rtol=1e-6)
+    assert {"region-mean-oracle-0.5-stop-under", "region-mean-oracle-0.5-stop-over"} <= set(
+        suite_uplift.REFERENCES)
 
 
 @needs_hdri

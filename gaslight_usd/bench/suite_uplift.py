@@ -19,7 +19,10 @@ Built-in methods: ``ldr-baseline`` (the photo through the inverse camera
 curve, no uplift), ``oracle`` (the truth itself: the ceiling) and
 ``region-mean-oracle`` (every clipped region filled flat with the truth's
 mean over it: the right energy in the right place, no shape; what a
-predictor that only ever gets each region's power right can score). Other
+predictor that only ever gets each region's power right can score) and the
+same with every region's power half a stop under and over the truth
+(``region-mean-oracle-0.5-stop-under`` / ``-over``: how exactly a predictor
+must know the power; the photo's own value stays the floor). Other
 modules add theirs with :func:`register_uplift_method`, and ceilings that
 read the truth with :func:`register_reference_method`; the suite imports
 the optional module ``gaslight_usd.uplift.bench_methods`` and the entry
@@ -107,19 +110,27 @@ def region_means(image: np.ndarray, labels: np.ndarray, count: int) -> np.ndarra
                      for c in range(image.shape[-1])], axis=1)
 
 
-def region_mean_oracle(pair: ReferencePair) -> np.ndarray:
-    """The baseline with each clipped region set to the truth's mean over it (per channel)."""
+def region_mean_oracle(pair: ReferencePair, stops: float = 0.0) -> np.ndarray:
+    """The baseline with each clipped region set to the truth's mean over it (per channel),
+    times ``2**stops`` but never below the photo's own value there."""
     out = ldr_baseline(pair.ldr, pair.curve).astype(np.float32)
     labels, count = clipped_regions(pair.ldr)
     if count:
         inside = labels > 0
-        out[inside] = region_means(pair.truth, labels, count)[labels[inside] - 1]
+        fill = region_means(pair.truth, labels, count)[labels[inside] - 1]
+        if stops:
+            fill = np.maximum(fill * 2.0 ** stops, out[inside])
+        out[inside] = fill
     return out
 
 
 register_uplift_method("ldr-baseline", ldr_baseline)
 register_reference_method("oracle", lambda pair: pair.truth)
 register_reference_method("region-mean-oracle", region_mean_oracle)
+register_reference_method("region-mean-oracle-0.5-stop-under",
+                          lambda pair: region_mean_oracle(pair, -0.5))
+register_reference_method("region-mean-oracle-0.5-stop-over",
+                          lambda pair: region_mean_oracle(pair, 0.5))
 
 
 PLUGIN_MODULE = "gaslight_usd.uplift.bench_methods"
