@@ -125,3 +125,7 @@ def test_cli_several_probes(tmp_path):
     assert usage.value.code == 2
     assert main(["hdri", str(tmp_path / "b.ply"), "-o", str(tmp_path / "x.exr"),
                  "--output-space", "no-such-space"]) == 3
+    # A device torch cannot use: a usage error before anything is rendered or written.
+    assert main(["hdri", str(tmp_path / "b.ply"), "--at", "0,0,0", "-o",
+                 str(tmp_path / "y.exr"), "--device", "tpu", "-q"]) == 2
+    assert not (tmp_path / "y.exr").exists()

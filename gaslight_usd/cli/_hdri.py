@@ -55,20 +55,24 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also write a tiled mip-mapped lat-long .tx (maketx)")
     p.add_argument("--output-space", metavar="NAME",
                    help="OCIO colour space of the files (default: the working space)")
+    p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
+                   help="where the panoramas are rendered: cpu (default) or cuda")
     add_common(p, colour=True)
     p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..converters.export_hdri import export_hdri_stage
+    from ..devices import resolve_device
 
+    resolve_device(args.device)
     if not args.splats.is_file():
         raise InputError("no such file", args.splats)
     if args.size < 8 or args.size % 2:
         raise InputError(f"--size must be an even number >= 8, got {args.size}")
     if args.output.suffix.lower() != ".exr":
         raise InputError("the output must be an .exr file name", args.output)
-    settings = settings_from(args)
+    settings = settings_from(args, device=args.device)
     options = {"at": args.at, "size": args.size, "cube": args.cube, "faces": args.faces,
                "tx": args.tx, "output_space": args.output_space}
     ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
