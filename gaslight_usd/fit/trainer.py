@@ -354,8 +354,9 @@ def fit_splats(data: FitData, config: FitConfig, seed: int = 0,
 
     ``threads``: torch CPU threads during the fit (default: cores - 1, at least 1).
     ``device``: ``cpu`` (compiled kernels; deterministic for a seed) or ``cuda``
-    (the torch renderer on the GPU; its scatter-adds make runs differ in the
-    last bits, so two GPU fits agree closely, not exactly).
+    (the torch renderer on the GPU: the same fit, but sums in another order,
+    so its splats differ from the CPU's as another seed's would; two GPU runs
+    of a seed on one H100 repeated exactly).
     """
     dev = resolve_device(device)
     # OpenMP threads spin-wait: on a small shared machine one thread per spare
