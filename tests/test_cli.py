@@ -116,3 +116,21 @@ def test_help_documents_exit_codes():
     assert res.returncode == 0
     for code in ("0 ", "1 ", "2 ", "3 ", "130"):
         assert code in res.stdout
+
+
+def test_run_poses_option_takes_only_poses(photo_folder, tmp_path):
+    out = tmp_path / "out"
+    res = run_cli("run", photo_folder, "--poses", photo_folder, "-o", out, "-q")
+    assert res.returncode == 3
+    assert "--poses: not a COLMAP model or transforms.json" in res.stderr
+    assert str(photo_folder) in res.stderr and not out.exists()
+    # Real poses given by option are an input like any other: here the HDR views
+    # and the poses are made or taken, and the report names the given poses.
+    from gaslight_usd.colmap import ColmapModel, write_model
+
+    write_model(tmp_path / "sparse", ColmapModel(cameras=[]))
+    res = run_cli("run", photo_folder, "--poses", tmp_path / "sparse", "-o", out,
+                  "--to", "hdr", "--method", "linear", "-q")
+    assert res.returncode == 0, res.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert str(tmp_path / "sparse") in json.dumps(report["inputs"])

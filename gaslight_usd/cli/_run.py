@@ -7,8 +7,8 @@ import json
 import sys
 from pathlib import Path
 
-from ..errors import NotBuiltYet
-from ..kinds import Kind
+from ..errors import InputError, NotBuiltYet
+from ..kinds import Kind, detect_kind
 from ..pipeline import DEFAULT_TARGETS, Job, run_job, step_options
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from
@@ -27,7 +27,7 @@ command skips the stages that finished with the same inputs and options.
 
 examples:
   gaslight2usd run examples/room/photos -o out
-  gaslight2usd run examples/room/photos examples/room/sparse -o out --preset balanced
+  gaslight2usd run examples/room/photos --poses examples/room/sparse -o out --preset balanced
   gaslight2usd run splats.ply -o out --to usd,hdri --at 0,1.5,0
 """
 
@@ -52,6 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--to", type=_targets, default=DEFAULT_TARGETS, metavar="LIST",
                    help="what to make: any of hdr,poses,splats,usd,hdri (default: "
                         "splats,usd,hdri)")
+    p.add_argument("--poses", type=Path, metavar="SPARSE_DIR|transforms.json",
+                   help="poses to use instead of solving them (the same as giving them as "
+                        "an INPUT; must be a COLMAP model or transforms.json)")
     p.add_argument("--method", choices=["bracket", "recursive", "linear"],
                    help="HDR uplift method (default: bracket when brackets are present, "
                         "else recursive)")
@@ -80,13 +83,18 @@ def run(args: argparse.Namespace) -> int:
     from ..devices import resolve_device  # imports torch: not at --help time
 
     resolve_device(args.device)
+    inputs = list(args.inputs)
+    if args.poses is not None:
+        if detect_kind(args.poses) is not Kind.POSES:
+            raise InputError("--poses: not a COLMAP model or transforms.json", args.poses)
+        inputs.append(args.poses)
     choose = {"uplift": f"uplift.{args.method}"} if args.method else {}
     registry = default_registry()
     for step, name in choose.items():
         if name not in registry:
             raise NotBuiltYet(f"{step} method {name!r} is not built yet")
     job = Job(
-        inputs=list(args.inputs),
+        inputs=inputs,
         out_dir=args.output,
         targets=args.to,
         choose=choose,
