@@ -1,4 +1,4 @@
-"""HDR views + poses -> HDR Gaussian splats (PLY), fitted on the CPU.
+"""HDR views + poses -> HDR Gaussian splats (PLY), fitted on the CPU or a CUDA GPU.
 
 Options (step "fit"): ``preset`` (fast|balanced|best), ``budget`` (most
 splats), ``iterations``, ``seed`` (default: the run's), ``device``, ``resume``
@@ -103,6 +103,6 @@ CONVERTERS = [
         inputs=(Kind.HDR_VIEWS, Kind.POSES),
         output=Kind.SPLATS,
         run=fit,
-        description="fit HDR Gaussian splats to the posed HDR views (CPU, linear HDR)",
+        description="fit HDR Gaussian splats to the posed HDR views (linear HDR, CPU or CUDA)",
     ),
 ]
