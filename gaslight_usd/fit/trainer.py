@@ -87,6 +87,7 @@ class Trainer:
         self.train, self.held = data.split(config.holdout_every)
         self.extent = scene_extent(data, self.train)
         self.targets = [torch.as_tensor(im, device=device) for im in data.images]
+        self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
 
     # -- state -------------------------------------------------------------------
@@ -192,6 +193,15 @@ class Trainer:
                                 self.data.images[i]) for i in views]
         return {k: float(np.mean([e[k] for e in errs])) for k in errs[0]}
 
+    def _training_background(self) -> float | tuple[float, float, float]:
+        """The colour behind this step's view (see ``FitConfig.random_background``);
+        drawn from (seed, step) alone, so a resumed fit draws the same colours."""
+        if not self.cfg.random_background:
+            return self.cfg.background
+        level = self.cfg.random_background * self.mean_level
+        rgb = np.random.default_rng([self.seed, self.step, 1]).uniform(0.0, level, 3)
+        return tuple(float(v) for v in rgb)
+
     def active_degree(self) -> int:
         return min(self.cfg.max_sh_degree, self.step // max(self.cfg.sh_raise_every, 1))
 
@@ -267,7 +277,7 @@ class Trainer:
             view = self.train[k]
             cam = self.data.cameras[view]
             out = render(self.model.params(self.active_degree()), cam,
-                         background=cfg.background, sh_degree=self.active_degree(),
+                         background=self._training_background(), sh_degree=self.active_degree(),
                          pose=self.refiner.pose(k) if self.refiner else None)
             loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight)
             if cfg.elongation_weight:
