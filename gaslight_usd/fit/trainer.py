@@ -2,7 +2,9 @@
 
 The loop is 3DGS's (Kerbl et al. 2023) on linear HDR targets: one view per
 step, loss L1(HDR) + 0.2 (1 - SSIM(clamped)), Adam, densify by view-space
-gradient and prune. It adds no more than the scene needs:
+gradient and prune; each step's render is composited over a random colour
+(``random_background``), so the fit cannot leave surfaces see-through. It adds
+no more than the scene needs:
 
 - densification runs only while the held-out views still improve (relative
   gain of the held-out log-luminance RMSE >= ``min_improvement`` between two
