@@ -140,7 +140,7 @@ def test_elongation_weight_shortens_needles_in_a_fit(synthetic):
 def test_random_background_leaves_no_see_through_surfaces(synthetic):
     """Trained over black only, a fit may leave its surfaces translucent (black shows
     through and costs nothing); over a random colour each step, it may not."""
-    root, _, cams = synthetic
+    root, _, _ = synthetic
     data = load_fit_data(root / "hdr", root / "sparse")
 
     def coverage(level):
