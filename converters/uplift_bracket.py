@@ -67,7 +67,8 @@ def merge(ctx: StageContext) -> StageResult:
         }
         ref.name = bracket.name if group_file else ref.name
         write_hdr_view(ctx.output, ref, np.maximum(radiance, 0), s.working_space, "bracket",
-                       attrs, s.ocio_config)
+                       attrs, s.ocio_config,
+                       clipped_by=bracket.views[int(np.argmin(bracket.evs))])
         if ctx.options.get("save_stacks"):
             write_stack(ctx.output / "stacks", ref.name, stack, result.evs)
         merged_count += int(bracket.is_bracket)

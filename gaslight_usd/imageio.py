@@ -186,8 +186,12 @@ def write_exr(
     half: bool | None = None,
     compression: str = "zip",
     config_uri: str | None = None,
+    extra_channels: Mapping[str, np.ndarray] | None = None,
 ) -> Path:
     """Write float pixels ``(H, W, C)`` as an EXR, atomically.
+
+    ``extra_channels``: named ``(H, W)`` planes stored after R, G, B (such as
+    the HDR views' ``clip_floor``); readers that know only RGB ignore them.
 
     ``half=None`` picks half unless a value exceeds the half range (65504).
     The file carries ``chromaticities`` (when the space has known primaries),
@@ -198,13 +202,22 @@ def write_exr(
     data = np.ascontiguousarray(pixels, dtype=np.float32)
     if data.ndim == 2:
         data = data[..., None]
+    names = None
+    if extra_channels:
+        if data.shape[2] != 3:
+            raise ValueError("extra channels follow an RGB image")
+        planes = [np.asarray(v, np.float32)[..., None] for v in extra_channels.values()]
+        data = np.ascontiguousarray(np.concatenate([data, *planes], axis=2))
+        names = ("R", "G", "B", *extra_channels)
     if not np.all(np.isfinite(data)):
         raise ValueError(f"refusing to write NaN/Inf pixels to {path}")
     if half is None:
         half = float(np.max(np.abs(data), initial=0.0)) <= HALF_MAX
     h, w, c = data.shape
     spec = oiio.ImageSpec(w, h, c, oiio.HALF if half else oiio.FLOAT)
-    if c >= 3:
+    if names:
+        spec.channelnames = names
+    elif c >= 3:
         spec.channelnames = ("R", "G", "B", "A")[:c] if c <= 4 else spec.channelnames
     spec.attribute("compression", compression)
     info = colour.space_info(colour_space, config_uri)
@@ -225,6 +238,26 @@ def write_exr(
             out.close()
         del out  # environment-map EXRs are only flushed once the output is gone
     return path
+
+
+def read_channel(path: str | Path, name: str) -> np.ndarray | None:
+    """One named channel of an image as float32 ``(H, W)``; None when it has none."""
+    path = Path(path)
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error or not buf.initialized:
+        raise InputError(f"cannot read image: {buf.geterror().strip() or 'unknown format'}", path)
+    index = buf.spec().channelindex(name)
+    if index < 0:
+        return None
+    plane = buf.get_pixels(oiio.FLOAT, roi=oiio.ROI(buf.roi.xbegin, buf.roi.xend,
+                                                     buf.roi.ybegin, buf.roi.yend, 0, 1,
+                                                     index, index + 1))
+    if plane is None or buf.has_error:
+        raise InputError(f"cannot decode channel {name!r}: {buf.geterror().strip()}", path)
+    plane = np.asarray(plane, np.float32).reshape(buf.spec().height, buf.spec().width)
+    if not np.all(np.isfinite(plane)):
+        raise InputError(f"channel {name!r} holds NaN or infinite samples", path)
+    return plane
 
 
 def _set_attribute(spec: oiio.ImageSpec, key: str, value: Any) -> None:

@@ -21,6 +21,12 @@ from .imageio import IMAGE_EXTENSIONS, LDR_EXTENSIONS, Image, list_images, read_
 CLIP_LEVEL = 0.99
 """An encoded value at or above this (of full scale) counts as clipped."""
 
+CLIP_FLOOR_CHANNEL = "clip_floor"
+"""The HDR views' extra EXR channel: in pixels the photo clipped, the luminance the photo
+recorded there (relative radiance, working space), a lower bound on the true luminance;
+0 where the photo measured the pixel. The fit treats those pixels as bounds, not targets
+(:mod:`gaslight_usd.fit.losses`)."""
+
 
 @dataclass
 class View:
@@ -46,6 +52,12 @@ class View:
     @property
     def relative_radiance(self) -> np.ndarray:
         return self.linear / np.float32(self.exposure_ratio)
+
+    def clip_floor(self, weights: np.ndarray) -> np.ndarray:
+        """``(H, W)``: the recorded luminance (``weights``: the working space's Y weights)
+        where the photo clipped, 0 elsewhere; see :data:`CLIP_FLOOR_CHANNEL`."""
+        recorded = np.maximum(self.relative_radiance, 0.0) @ weights.astype(np.float32)
+        return np.where(self.clipped_mask, np.maximum(recorded, 1e-6), 0.0).astype(np.float32)
 
 
 def load_views(paths: list[Path] | Path, input_space: str, working_space: str,
@@ -85,10 +97,19 @@ def hdr_attributes(view: View, method: str, extra: dict[str, Any] | None = None)
 
 def write_hdr_view(folder: Path, view: View, radiance: np.ndarray, working_space: str,
                    method: str, extra: dict[str, Any] | None = None,
-                   config_uri: str | None = None) -> Path:
-    """Write one HDR view as ``<folder>/<photo stem>.exr`` (atomic)."""
+                   config_uri: str | None = None, clipped_by: View | None = None) -> Path:
+    """Write one HDR view as ``<folder>/<photo stem>.exr`` (atomic), with its clip floor.
+
+    ``clipped_by``: the photo whose clipping bounds this radiance (default ``view``;
+    for a merged bracket, its darkest frame: only what that frame clipped is unmeasured).
+    """
+    source = clipped_by or view
+    floor = source.clip_floor(colour.luminance_weights(working_space, config_uri))
+    if floor.shape != radiance.shape[:2]:
+        floor = np.zeros(radiance.shape[:2], np.float32)
     return write_exr(folder / f"{view.name}.exr", radiance, working_space,
-                     hdr_attributes(view, method, extra), config_uri=config_uri)
+                     hdr_attributes(view, method, extra), config_uri=config_uri,
+                     extra_channels={CLIP_FLOOR_CHANNEL: floor})
 
 
 def hdr_view_paths(folder: Path) -> list[Path]:
