@@ -17,10 +17,11 @@ import numpy as np
 
 from ..cameras import PinholeCamera
 from ..colmap import ColmapModel
+from ..colour import luminance_weights
 from ..errors import InputError
-from ..imageio import read_header, read_image
+from ..imageio import read_channel, read_header, read_image
 from ..poses import read_poses
-from ..views import hdr_view_paths
+from ..views import CLIP_FLOOR_CHANNEL, hdr_view_paths
 
 
 @dataclass
@@ -38,6 +39,16 @@ class FitData:
     downscale: int = 1
     paths: list[Path] = field(default_factory=list)
     """The full-resolution HDR view of each camera (empty for in-memory data)."""
+    floors: list[np.ndarray | None] = field(default_factory=list)
+    """Per view ``(H, W)`` lower bounds on the luminance where its photo clipped, 0 where
+    it measured (see :func:`fit_floor`); empty or None: every pixel was measured."""
+
+    def floor(self, index: int) -> np.ndarray | None:
+        """View ``index``'s clip floor, None when it has no clipped pixel."""
+        if index >= len(self.floors) or self.floors[index] is None:
+            return None
+        f = self.floors[index]
+        return f if bool(np.any(f > 0)) else None
 
     def split(self, holdout_every: int) -> tuple[list[int], list[int]]:
         """Training and held-out view indices (every ``holdout_every``-th held out)."""
@@ -62,6 +73,21 @@ def box_downscale(image: np.ndarray, factor: int) -> np.ndarray:
     c = image.shape[2]
     return image[:h, :w].reshape(h // factor, factor, w // factor, factor, c).mean(
         axis=(1, 3)).astype(np.float32)
+
+
+def fit_floor(floor: np.ndarray, image: np.ndarray, weights: np.ndarray, factor: int
+              ) -> np.ndarray:
+    """A full-size clip floor at fitting resolution.
+
+    A fitting pixel that covers any clipped photo pixel is a bound: the mean, over
+    its photo pixels, of the clipped ones' floors and the measured ones' luminance
+    (a lower bound on its mean luminance). Pixels with nothing clipped get 0.
+    """
+    clipped = floor > 0
+    bound = np.where(clipped, floor, image @ weights.astype(np.float32))[..., None]
+    low = box_downscale(bound.astype(np.float32), factor)[..., 0]
+    share = box_downscale(clipped.astype(np.float32)[..., None], factor)[..., 0]
+    return np.where(share > 0, np.maximum(low, 1e-6), 0.0).astype(np.float32)
 
 
 def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, Path]]:
@@ -140,7 +166,7 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
     model = read_poses(poses)
     pairs = match_views(hdr_dir, model)
     check_overlap([c for c, _ in pairs], model.points)
-    names, cams, images, paths = [], [], [], []
+    names, cams, images, paths, floors = [], [], [], [], []
     space, attrs = "", {}
     for cam, path in pairs:
         paths.append(path)
@@ -150,6 +176,10 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
             attrs = {k: v for k, v in img.metadata.items() if k.startswith("gaslight:")}
         names.append(Path(cam.name).stem)
         cams.append(scale_camera(cam, downscale))
-        images.append(box_downscale(np.maximum(img.pixels, 0.0), downscale))
+        pixels = np.maximum(img.pixels, 0.0)
+        images.append(box_downscale(pixels, downscale))
+        floor = read_channel(path, CLIP_FLOOR_CHANNEL)
+        floors.append(None if floor is None or not np.any(floor > 0) else fit_floor(
+            floor, pixels, luminance_weights(img.colour_space), downscale))
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
-                   attributes=attrs, downscale=downscale, paths=paths)
+                   attributes=attrs, downscale=downscale, paths=paths, floors=floors)

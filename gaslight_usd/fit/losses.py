@@ -3,8 +3,18 @@
 Training loss (GaSLight, following 3DGS): L1 on the unclamped linear HDR image
 plus ``ssim_weight`` x (1 - SSIM) on both images clamped to [0, 1]; an optional
 ``log_weight`` x L1 of log(1 + x) adds a term that sees the dark and the very
-bright regions alike. SSIM is Wang et al. 2004 with the usual 11x11 Gaussian
-window (sigma 1.5), C1 = 0.01^2, C2 = 0.03^2.
+bright regions alike.
+
+Clipped pixels are bounds, not targets: where the photo clipped (a view's clip
+floor, :data:`gaslight_usd.views.CLIP_FLOOR_CHANNEL`, is > 0) the photo only says
+the luminance is at least the floor; the uplift's fill there is a guess. So in
+those pixels the loss is ``relu(floor - Y(pred))`` (any radiance above what the
+photo recorded is free) plus ``fill_weight`` x the L1 to the fill (a weak pull
+towards the predictor). A view whose exposure saw the light unclipped then pins
+its power, however the other views' fills guessed it.
+
+SSIM is Wang et al. 2004 with the usual 11x11 Gaussian window (sigma 1.5),
+C1 = 0.01^2, C2 = 0.03^2.
 """
 
 from __future__ import annotations
@@ -46,10 +56,31 @@ def ssim(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return (num / den).mean()
 
 
+def bounded_l1(pred: torch.Tensor, target: torch.Tensor, floor: torch.Tensor | None,
+               y_weights: torch.Tensor | None = None, fill_weight: float = 0.1
+               ) -> torch.Tensor:
+    """Mean L1 over ``(H, W, 3)`` with the clip floor's pixels as bounds (module docstring).
+
+    ``floor``: ``(H, W)`` lower bounds on the luminance, 0 where measured (None: all
+    measured); ``y_weights``: the working space's luminance weights ``(3,)``.
+    """
+    err = (pred - target).abs()
+    if floor is None:
+        return err.mean()
+    if y_weights is None:
+        raise ValueError("a clip floor needs the working space's luminance weights")
+    bounded = (floor > 0)[..., None]
+    short = torch.relu(floor - pred @ y_weights)[..., None]
+    return torch.where(bounded, fill_weight * err + short, err).mean()
+
+
 def fit_loss(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float = 0.2,
-             log_weight: float = 0.0) -> torch.Tensor:
-    """L1(HDR) + ssim_weight (1 - SSIM(clamped)) [+ log_weight L1(log1p)]."""
-    loss = (pred - target).abs().mean()
+             log_weight: float = 0.0, floor: torch.Tensor | None = None,
+             y_weights: torch.Tensor | None = None, fill_weight: float = 0.1
+             ) -> torch.Tensor:
+    """L1(HDR, clipped pixels as bounds) + ssim_weight (1 - SSIM(clamped))
+    [+ log_weight L1(log1p)]."""
+    loss = bounded_l1(pred, target, floor, y_weights, fill_weight)
     if ssim_weight:
         loss = loss + ssim_weight * (1.0 - ssim(pred.clamp(0, 1), target.clamp(0, 1)))
     if log_weight:

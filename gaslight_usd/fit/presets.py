@@ -38,6 +38,14 @@ class FitConfig:
     holdout_every: int = 8
     ssim_weight: float = 0.2
     log_weight: float = 0.0
+    clip_bounds: bool = True
+    """Fit clipped photo pixels as lower bounds (:func:`.losses.bounded_l1`), not as targets."""
+    infer_power: bool = True
+    """After the fit, rescale each clipped light by the power its lit surfaces imply
+    (:mod:`.power`), fused with the uplift's fill by their uncertainties."""
+    clip_fill_weight: float = 0.1
+    """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
+    off is the old behaviour: the fill fitted like a measurement)."""
     elongation_limit: float = 4.0
     """Largest-to-middle scale ratio above which ``elongation_weight`` penalises a splat."""
     elongation_weight: float = 0.0
