@@ -244,7 +244,8 @@ def test_fit_suite_blurred_truth_yardstick_falls_with_the_blur():
     from gaslight_usd.bench import suite_fit
 
     if not suite_fit._example_ready():
-        pytest.skip("the bundled example is not here")
+        pytest.skip("the bundled example examples/room is missing: it ships with the "
+                    "project (git checkout examples/room, or set GASLIGHT_EXAMPLE)")
     sharp, soft = suite_fit.blurred_truth_rows(sigmas=(1.0, 5.0), relight=False)
     assert sharp["setting"] == "sigma 1 px" and soft["setting"] == "sigma 5 px"
     for key in ("probe_pu21_psnr", "probe_pu21_psnr_peak"):

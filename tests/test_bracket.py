@@ -187,5 +187,6 @@ def test_neighbouring_views_of_a_smooth_ceiling_are_not_a_bracket():
 
     photos = sorted((example_room() / "photos").glob("*.jpg"))
     if not photos:
-        pytest.skip("the bundled example is not here")
+        pytest.skip("the bundled example examples/room is missing: it ships with the "
+                    "project (git checkout examples/room, or set GASLIGHT_EXAMPLE)")
     assert find_brackets(photos, "sRGB - Texture", "ACEScg") == []

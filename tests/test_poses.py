@@ -31,7 +31,9 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "room"
 HDRI = ROOT / "tests" / "data" / "hdri"
 needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
-                                   reason="examples/room not rendered")
+                                   reason="the bundled example examples/room is missing: "
+                                          "it ships with the project (git checkout "
+                                          "examples/room)")
 
 
 def look_at(centre, target, up=(0, 1, 0), name="") -> PinholeCamera:

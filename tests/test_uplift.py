@@ -366,7 +366,8 @@ def test_diffusion_without_diffusers_or_weights_is_a_clear_error(monkeypatch):
 
 
 @pytest.mark.skipif(not __import__("gaslight_usd.uplift.diffusion", fromlist=["x"])
-                    .diffusers_available(), reason="diffusers is an optional extra")
+                    .diffusers_available(),
+                    reason="diffusers is an optional extra: pip install '.[diffusion]'")
 def test_diffusion_plumbing_with_a_tiny_random_network():
     from gaslight_usd.uplift.diffusion import DiffusionPredictor, tiny_components
 
@@ -412,7 +413,8 @@ def tiny_weights_folder(folder: Path) -> Path:
 
 
 @pytest.mark.skipif(not __import__("gaslight_usd.uplift.diffusion", fromlist=["x"])
-                    .diffusers_available(), reason="diffusers is an optional extra")
+                    .diffusers_available(),
+                    reason="diffusers is an optional extra: pip install '.[diffusion]'")
 def test_diffusion_weights_folder_loads_and_drives_the_recursion(tmp_path, monkeypatch):
     """The real loading path (--weights / $GASLIGHT_WEIGHTS -> from_pretrained, the
     prompts through the tokenizer and text encoder) feeding the paper's recursion."""
