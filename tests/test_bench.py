@@ -199,8 +199,8 @@ def test_region_mean_oracle_keeps_each_clipped_regions_true_energy(bundled_hdri)
                                   suite_uplift.ldr_baseline(pair.ldr, pair.curve)[outside])
     assert "region-mean-oracle" in suite_uplift.REFERENCES
     # Half a stop over: every region's fill times sqrt(2), never below the photo's own value
-    # (a floor that binds almost nowhere: a clipped region outshines its own pixels' values,
-    # so each region's mean rises by sqrt(2)); unclipped pixels untouched.
+    # (a floor that binds only where a channel the photo did not clip reads above the
+    # region's mean: rare, so each region's mean rises by sqrt(2)); unclipped pixels untouched.
     over = suite_uplift.region_mean_oracle(pair, 0.5)
     baseline = suite_uplift.ldr_baseline(pair.ldr, pair.curve)
     clipped = labels > 0
