@@ -1,7 +1,9 @@
-"""Shared fixtures: small real files written with the project's own writers."""
+"""Shared fixtures: small real files written with the project's own writers, and the
+small real HDR panoramas that ship with the project (``tests/data/hdri``)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +11,10 @@ import OpenImageIO as oiio
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-SHARED_HDRI = REPO.parent / "shared" / "data" / "hdri"
+TEST_HDRI = REPO / "tests" / "data" / "hdri"
+"""Eight CC0 panoramas, 256x128 half-float EXR, made from the shared set by
+tests/data/make_test_hdris.py (see tests/data/README.md). Tests read these, never
+../shared/data, so they run the same on every clone."""
 
 
 def write_jpeg(path: Path, pixels_u8: np.ndarray, exposure_time: float | None = None,
@@ -45,3 +50,12 @@ def photo_folder(tmp_path: Path) -> Path:
         img[:8, :8] = 255  # a clipped corner
         write_jpeg(folder / f"shot_{i}.jpg", img, exposure_time=t, f_number=4.0, iso=100)
     return folder
+
+
+@pytest.fixture
+def bundled_hdri(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """The bundled panoramas, also made the library's default HDR folder
+    (``$GASLIGHT_HDRI_DIR``), so code that reads the default set (the uplift bench,
+    ``shared_sources()``, the known clamp levels) reads them."""
+    monkeypatch.setenv("GASLIGHT_HDRI_DIR", str(TEST_HDRI))
+    yield TEST_HDRI

@@ -73,7 +73,8 @@ def _mitsuba():
         mi.set_variant("llvm_ad_rgb")
         mi.load_dict({"type": "volprim_rf_basic"})
     except Exception as exc:  # noqa: BLE001 - any failure: this consumer is unavailable
-        pytest.skip(f"Mitsuba llvm_ad_rgb / volprim_rf_basic unavailable: {exc}")
+        pytest.skip(f"Mitsuba llvm_ad_rgb / volprim_rf_basic unavailable: {exc} (pip install "
+                    "mitsuba; apt-get install libllvm19, as .ci/run does)")
     return mi
 
 

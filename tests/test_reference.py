@@ -1,5 +1,5 @@
 """Reference LDR/HDR pairs: camera curves, crops, exposure, clipping, determinism,
-light-truth flags, on the shared real panoramas and on user HDR files."""
+light-truth flags, on the bundled real panoramas and on user HDR files."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import TEST_HDRI
 
 from gaslight_usd.cameras import latlong_directions
 from gaslight_usd.errors import InputError
@@ -16,16 +17,15 @@ from gaslight_usd.evaluation import reference as ref
 from gaslight_usd.evaluation.metrics import luminance
 from gaslight_usd.imageio import read_image, write_exr
 
-HDRI = ref.default_hdri_dir()
-needs_hdri = pytest.mark.skipif(not (HDRI / "forest.exr").exists(),
-                                reason="shared panoramas not present")
-
 SMALL = {"width": 64, "height": 48}
 
 
 @pytest.fixture(scope="module")
 def sources() -> dict[str, ref.HDRSource]:
-    return {s.name: s for s in ref.shared_sources()}
+    """The bundled panoramas read as the default set (so their known clamp levels apply)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("GASLIGHT_HDRI_DIR", str(TEST_HDRI))
+        return {s.name: s for s in ref.shared_sources()}
 
 
 # -- camera curves ----------------------------------------------------------------------
@@ -77,9 +77,8 @@ def test_solid_angles_sum_to_the_view_cone():
     assert ref.pixel_solid_angles(cam).sum() == pytest.approx(2 * math.pi / 3, rel=1e-3)
 
 
-# -- pairs from the shared panoramas -----------------------------------------------------
+# -- pairs from the bundled real panoramas ----------------------------------------------
 
-@needs_hdri
 def test_pairs_are_deterministic_and_prefix_stable(sources):
     listed = list(sources.values())
     a = ref.build_pairs(listed, count=3, seed=7, **SMALL)
@@ -91,7 +90,6 @@ def test_pairs_are_deterministic_and_prefix_stable(sources):
     assert not np.array_equal(a[0].truth, c[0].truth)
 
 
-@needs_hdri
 def test_pair_exposure_clipping_and_baseline(sources):
     pair = ref.make_pair(sources["forest"], 5, seed=3, **SMALL)
     y = luminance(pair.truth)
@@ -106,7 +104,6 @@ def test_pair_exposure_clipping_and_baseline(sources):
     assert mid.sum() > 100 and rel.max() < 0.03  # only 8-bit quantisation left
 
 
-@needs_hdri
 def test_light_truth_flags_follow_the_clamped_sources(sources):
     assert sources["city"].clamp_level == 32000 and sources["studio"].clamp_level == 100
     for name in ("forest", "sunset", "courtyard", "night"):

@@ -265,7 +265,8 @@ def test_latlong_cube_round_trip():
     assert np.abs(back - image).max() < 0.01
 
 
-@pytest.mark.skipif(shutil.which("exrenvmap") is None, reason="needs OpenEXR's exrenvmap")
+@pytest.mark.skipif(shutil.which("exrenvmap") is None,
+                    reason="needs OpenEXR's exrenvmap: apt-get install openexr")
 def test_latlong_to_cube_matches_exrenvmap(tmp_path):
     d = latlong_directions(256, 128)
     image = (1.5 + d[..., 0:1] * [1, 0, 0] + d[..., 1:2] * [0, 1, 0] + d[..., 2:3] * [0, 0, 1])

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-from conftest import SHARED_HDRI, write_jpeg
+from conftest import TEST_HDRI, write_jpeg
 
 from gaslight_usd import colour
 from gaslight_usd.cli.main import main
@@ -302,13 +302,16 @@ def test_fast_predictor_stays_near_white_for_sky_that_only_just_clips():
     assert out.max() < 8.0
 
 
-@pytest.mark.skipif(not (SHARED_HDRI / "sunset.exr").exists(), reason="shared HDRIs absent")
-@pytest.mark.parametrize(("name", "least_gain"), [("forest", 1.5), ("night", 3.0),
+@pytest.mark.parametrize(("name", "least_gain"), [("forest", 1.5), ("night", 2.0),
                                                   ("sunset", -3.0)])
 def test_fast_predictor_relights_unseen_crops(name, least_gain):
     """Relight PSNR gain over the baseline on crops neither calibration nor bench uses.
 
     forest and night: calibration panoramas, unseen crops (seed 7, small renders), a gain.
+    The crops come from the bundled 256x128 copies (tests/data/README.md): their area
+    averaging spreads night's small lamps over bigger, dimmer pixels (same power), which
+    the predictor, calibrated on the full-size panoramas, lifts less well, so night's bar
+    is 2 dB where the full-size panorama clears 3 dB.
     sunset: held out of calibration; its hazy low sun is much dimmer than the
     calibration suns, and the model still overshoots its glow a little (known
     gap): it must at least not lose more than 3 dB on average.
@@ -317,7 +320,7 @@ def test_fast_predictor_relights_unseen_crops(name, least_gain):
     from gaslight_usd.evaluation.relight import RelightRenderer, relight_scores
     from gaslight_usd.uplift.calibrate import evaluation_curve
 
-    source = load_source(SHARED_HDRI / f"{name}.exr")
+    source = load_source(TEST_HDRI / f"{name}.exr")
     renderer = RelightRenderer(resolution=48, spp=8, env_height=64, seed=3)
     fast, gains = FastPredictor(), []
     for i in range(6):
@@ -363,7 +366,8 @@ def test_diffusion_without_diffusers_or_weights_is_a_clear_error(monkeypatch):
 
 
 @pytest.mark.skipif(not __import__("gaslight_usd.uplift.diffusion", fromlist=["x"])
-                    .diffusers_available(), reason="diffusers is an optional extra")
+                    .diffusers_available(),
+                    reason="diffusers is an optional extra: pip install '.[diffusion]'")
 def test_diffusion_plumbing_with_a_tiny_random_network():
     from gaslight_usd.uplift.diffusion import DiffusionPredictor, tiny_components
 
@@ -409,7 +413,8 @@ def tiny_weights_folder(folder: Path) -> Path:
 
 
 @pytest.mark.skipif(not __import__("gaslight_usd.uplift.diffusion", fromlist=["x"])
-                    .diffusers_available(), reason="diffusers is an optional extra")
+                    .diffusers_available(),
+                    reason="diffusers is an optional extra: pip install '.[diffusion]'")
 def test_diffusion_weights_folder_loads_and_drives_the_recursion(tmp_path, monkeypatch):
     """The real loading path (--weights / $GASLIGHT_WEIGHTS -> from_pretrained, the
     prompts through the tokenizer and text encoder) feeding the paper's recursion."""
