@@ -13,7 +13,8 @@ into runs that are either single photos or brackets:
   exposure time) between capture times;
 - pixels, when they are at hand: each frame looks like its nearest exposure
   in the bracket (:mod:`.similarity`, compared only where both saw the scene;
-  nothing to compare leaves it to EXIF).
+  a pair with nothing to compare, such as a nearly black frame beside a
+  clipped one, is left to EXIF, but some pair of the bracket must compare).
 
 Of all such splits the one with the most photos in brackets, then the fewest
 brackets, wins (a longer first bracket on a tie): so a clipped bright frame or
@@ -225,8 +226,10 @@ def bracket_candidates(photos: Sequence[Photo]) -> set[int]:
 
 
 def _pixel_check(photos: Sequence[Photo], seg: Sequence[int], similar: Similar | None,
-                 threshold: float) -> tuple[list[float | None], tuple[int, int, float] | None]:
-    """Similarities of exposure neighbours; the first pair below ``threshold``, if any."""
+                 threshold: float
+                 ) -> tuple[list[float | None], tuple[int, int, float | None] | None]:
+    """Similarities of exposure neighbours; the first pair below ``threshold``, or the
+    extremes with similarity None when no pair could be compared; None when it passes."""
     if similar is None:
         return [], None
     by_ev = sorted(seg, key=lambda i: photos[i].ev)
@@ -236,6 +239,8 @@ def _pixel_check(photos: Sequence[Photo], seg: Sequence[int], similar: Similar |
         sims.append(s)
         if s is not None and s < threshold:
             return sims, (i, j, s)
+    if all(s is None for s in sims):  # nothing confirms it: frames too far apart to compare
+        return sims, (by_ev[0], by_ev[-1], None)
     return sims, None
 
 
@@ -311,7 +316,10 @@ def _lonely_warnings(photos: Sequence[Photo], order: list[int], links: list[str 
                     continue  # it fits; the split was chosen for the brackets around it
                 a, b, s = failed
                 other = photos[b if a == i else a].path.name
-                reason = f"its image differs from {other} (similarity {s:.2f} < {threshold})"
+                reason = (f"its image differs from {other} (similarity {s:.2f} < {threshold})"
+                          if s is not None else
+                          f"its image and {other}'s share nothing to compare (one is clipped "
+                          "or black where the other is not)")
             elif reason == "a photo has no EXIF exposure time":
                 reason = "it has no EXIF exposure time"
             elif reason == "an exposure repeats":
@@ -372,6 +380,8 @@ def read_group_file(path: Path) -> list[tuple[str | None, list[str]]]:
         files[:] = [f for f in files if f]
         if not files:
             raise InputError(f"view {name or '(unnamed)'!r} lists no photos", path)
+        if name is not None and (not name or set(name) & set("/\\") or name in (".", "..")):
+            raise InputError(f"view name {name!r} cannot name a file (no slashes)", path)
         if name is not None and name in seen_names:
             raise InputError(f"view {name!r} is named twice", path)
         seen_names.add(name or "")
@@ -399,6 +409,11 @@ def group_from_file(photos: Sequence[Photo], path: Path) -> Grouping:
     rest = [i for i in order if i not in listed]
     for i in rest:
         brackets.append(Bracket(photos[i].name, [i], f"{SINGLE} (not in the grouping file)"))
+    names = [b.name for b in brackets]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"view name(s) {', '.join(twice)} would name two HDR views "
+                         "(a view and an unlisted photo of that name?)", path)
     warnings = []
     if rest:
         warnings.append(f"{len(rest)} photo(s) not in the grouping file {Path(path).name}, "

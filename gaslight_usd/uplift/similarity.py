@@ -22,14 +22,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from ..views import View
 
-THUMB_SIDE = 64
-"""Longest thumbnail side in blocks: hand-held shifts of a few pixels stay inside a block."""
+THUMB_SIDE = 96
+"""Longest thumbnail side in blocks."""
+MAX_SHIFT_BLOCKS = 2
+"""Hand-held frames are compared at every offset up to this many blocks (2 % of the
+image) and the best is kept: a shift of half a block already decorrelates texture."""
 CLIP_ENCODED = 0.95
 NOISE_FLOOR_ENCODED = 0.1
 """Encoded level (about 25 of 255) under which 8-bit quantisation and noise dominate."""
+SMOOTH_BLOCKS = 3
+"""Blocks per side of the window the log luminance is averaged over (usable where all are)."""
 MIN_OVERLAP = 24
 """Fewest blocks both frames saw for a measured similarity."""
 FLAT_STOPS = 0.05
@@ -59,7 +65,12 @@ def thumbnail(view: View, side: int = THUMB_SIDE) -> Thumbnail:
              (brightest.min(axis=(2, 3)) > NOISE_FLOOR_ENCODED)
     lum = _blocks(view.linear.mean(axis=-1), factor).mean(axis=(2, 3))
     lum = lum / np.float32(view.exposure_ratio)
-    return Thumbnail(np.log2(np.maximum(lum, 1e-8)), usable)
+    # a sliding window of SMOOTH_BLOCKS: texture finer than a window no longer
+    # decorrelates when the frame moved by a fraction of a block
+    log_lum = ndimage.uniform_filter(np.log2(np.maximum(lum, 1e-8)), SMOOTH_BLOCKS,
+                                     mode="nearest")
+    usable = ndimage.minimum_filter(usable, SMOOTH_BLOCKS, mode="constant", cval=False)
+    return Thumbnail(log_lum, usable)
 
 
 def _ranks(x: np.ndarray) -> np.ndarray:
@@ -68,19 +79,35 @@ def _ranks(x: np.ndarray) -> np.ndarray:
     return ranks
 
 
-def similarity(a: Thumbnail, b: Thumbnail) -> float | None:
-    """Rank correlation of two thumbnails where both are usable; None when unmeasurable.
+def _window(n: int, d: int) -> slice:
+    return slice(max(0, d), n + min(0, d))
 
-    A flat common region (no structure to rank) returns 0.0 when its
-    exposure-normalised levels disagree by more than ``FLAT_MAX_OFFSET_STOPS``,
-    else None.
-    """
-    if a.usable.shape != b.usable.shape:
-        return 0.0
-    both = a.usable & b.usable
+
+def _aligned_similarity(a: Thumbnail, b: Thumbnail, dy: int, dx: int) -> float | None:
+    """Similarity with ``b`` displaced by (dy, dx) blocks."""
+    h, w = a.usable.shape
+    sa = (_window(h, dy), _window(w, dx))
+    sb = (_window(h, -dy), _window(w, -dx))
+    both = a.usable[sa] & b.usable[sb]
     if int(both.sum()) < MIN_OVERLAP:
         return None
-    x, y = a.log_luminance[both], b.log_luminance[both]
+    x, y = a.log_luminance[sa][both], b.log_luminance[sb][both]
     if x.std() < FLAT_STOPS or y.std() < FLAT_STOPS:
         return 0.0 if abs(float(np.median(x - y))) > FLAT_MAX_OFFSET_STOPS else None
     return float(np.corrcoef(_ranks(x), _ranks(y))[0, 1])
+
+
+def similarity(a: Thumbnail, b: Thumbnail, max_shift: int = MAX_SHIFT_BLOCKS) -> float | None:
+    """Rank correlation of two thumbnails where both are usable, at the best offset
+    within ``max_shift`` blocks; None when no offset leaves enough to compare.
+
+    A flat common region (no structure to rank) counts 0.0 when its
+    exposure-normalised levels disagree by more than ``FLAT_MAX_OFFSET_STOPS``,
+    else nothing.
+    """
+    if a.usable.shape != b.usable.shape:
+        return 0.0
+    r = range(-max_shift, max_shift + 1)
+    found = [s for s in (_aligned_similarity(a, b, dy, dx) for dy in r for dx in r)
+             if s is not None]
+    return max(found) if found else None
