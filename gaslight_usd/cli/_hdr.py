@@ -173,10 +173,10 @@ def grouping_lines(grouping: dict) -> list[str]:
     lines = [f"grouping ({grouping['order']}): {grouping['brackets']} bracket(s), "
              f"{grouping['singles']} single photo(s)"]
     for view in grouping["views"]:
-        kind = (f"{len(view['photos'])} frames" if len(view["photos"]) > 1 else "single")
-        if view.get("step_ev"):
-            kind += f", {view['step_ev']:g} EV apart"
-        lines.append(f"  {view['name']}.exr <- {' '.join(view['photos'])} ({kind}; "
-                     f"{view['how']})")
+        how = view["how"]
+        if len(view["photos"]) > 1:
+            step = f", {view['step_ev']:.2g} EV apart" if view.get("step_ev") else ""
+            how = f"{len(view['photos'])} frames{step}; {how}"
+        lines.append(f"  {view['name']}.exr <- {' '.join(view['photos'])} ({how})")
     lines += [f"warning: {w}" for w in grouping.get("warnings", [])]
     return lines

@@ -114,7 +114,7 @@ def metered_time(truth: np.ndarray, brightest_stops: float, clip_fraction: float
     level = float(np.quantile(truth.max(axis=-1), 1.0 - clip_fraction))
     t_bright = 1.15 / max(level, 1e-9)
     t = t_bright / 2.0 ** brightest_stops
-    return 2.0 ** (round(3 * math.log2(t)) / 3)
+    return 2.0 ** (math.ceil(3 * math.log2(t)) / 3)
 
 
 def expose(truth: np.ndarray, seconds: float, rng: np.random.Generator,
@@ -136,7 +136,7 @@ class Shoot:
 
 
 def shoot_bracket(position: Position, folder: Path, names: list[str], offsets: list[float],
-                  start: datetime, rng: np.random.Generator, clip_fraction: float = 0.6,
+                  start: datetime, rng: np.random.Generator, clip_fraction: float = 0.62,
                   gap_s: float = 0.3, capture_time: bool = True) -> datetime:
     """Shoot ``position`` as a bracket (EV ``offsets`` in camera order); returns the end time."""
     # the scene's brightness sets aperture/ISO: scale it so the middle frame is 1/125 s

@@ -49,8 +49,8 @@ SAME_VIEW_SIMILARITY = 0.85
 """Least rank correlation (:func:`.similarity.similarity`) of two frames of one bracket.
 Measured by ``pytest tests/test_bracket.py -k similarity -s``."""
 
-BY_EXIF_AND_PIXELS = "capture order, EXIF exposure step, image similarity"
-BY_EXIF = "capture order, EXIF exposure step (images not comparable)"
+BY_EXIF_AND_PIXELS = "consecutive, EXIF exposure step, image similarity"
+BY_EXIF = "consecutive, EXIF exposure step (images not comparable)"
 BY_FILE = "grouping file"
 SINGLE = "single photo"
 

@@ -99,7 +99,7 @@ def _aligned_similarity(a: Thumbnail, b: Thumbnail, dy: int, dx: int) -> float |
 
 def similarity(a: Thumbnail, b: Thumbnail, max_shift: int = MAX_SHIFT_BLOCKS) -> float | None:
     """Rank correlation of two thumbnails where both are usable, at the best offset
-    within ``max_shift`` blocks; None when no offset leaves enough to compare.
+    within ``max_shift`` blocks; None when too few blocks are usable in both as shot.
 
     A flat common region (no structure to rank) counts 0.0 when its
     exposure-normalised levels disagree by more than ``FLAT_MAX_OFFSET_STOPS``,
@@ -107,6 +107,8 @@ def similarity(a: Thumbnail, b: Thumbnail, max_shift: int = MAX_SHIFT_BLOCKS) ->
     """
     if a.usable.shape != b.usable.shape:
         return 0.0
+    if int((a.usable & b.usable).sum()) < MIN_OVERLAP:
+        return None  # offsets would only compare regions the frames did not both see
     r = range(-max_shift, max_shift + 1)
     found = [s for s in (_aligned_similarity(a, b, dy, dx) for dy in r for dx in r)
              if s is not None]
