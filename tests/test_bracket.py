@@ -386,3 +386,34 @@ def test_bad_grouping_files_are_refused_with_one_line(tmp_path, content, message
     assert r.returncode == 3 and message in r.stderr and "Traceback" not in r.stderr
     assert str(groups) in r.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize("source", SCENES)
+def test_similarity_separates_brackets_from_neighbouring_views(tmp_path, source):
+    """Exposure neighbours of hand-held AEB brackets (brightest >= 60 % clipped) score at
+    least SAME_VIEW_SIMILARITY; no two photos of the bundled example (neighbouring views
+    of one room, a smooth ceiling among them) do. Prints both sides of the margin."""
+    from gaslight_usd.evaluation.bracket_shoot import aeb_shoot
+    from gaslight_usd.locate import example_room
+    from gaslight_usd.uplift.grouping import SAME_VIEW_SIMILARITY
+    from gaslight_usd.uplift.similarity import similarity, thumbnail
+
+    scenes = SCENES[source]()
+    shoot = aeb_shoot(scenes[:5], tmp_path / "p", scenes[5:7])
+    same = []
+    for pos in shoot.positions:
+        frames = sorted(pos.frames, key=lambda f: f.true_time)
+        thumbs = [thumbnail(v) for v in load_views([f.path for f in frames], "srgb_tx",
+                                                   "lin_rec709")]
+        same += [similarity(a, b) for a, b in zip(thumbs[:-1], thumbs[1:], strict=True)]
+    measured = [s for s in same if s is not None]
+    photos = sorted((example_room() / "photos").glob("*.jpg"))
+    thumbs = [thumbnail(v) for v in load_views(photos, "srgb_tx", "lin_rec709")]
+    other = [similarity(thumbs[i], thumbs[j]) for i in range(len(thumbs))
+             for j in range(i + 1, len(thumbs))]
+    other = [s for s in other if s is not None]
+    print(f"\n{source}: bracket neighbours min {min(measured):.3f} ({len(measured)} of "
+          f"{len(same)} pairs measurable); example's different views max {max(other):.3f} "
+          f"({len(other)} pairs); threshold {SAME_VIEW_SIMILARITY}")
+    assert len(measured) >= 0.7 * len(same)
+    assert min(measured) >= SAME_VIEW_SIMILARITY > max(other)

@@ -13,7 +13,7 @@ overlap can still be checked by its level. Too little overlap (a nearly black
 frame against a mostly clipped one) measures nothing: ``None``, and the
 caller decides from EXIF alone.
 
-Measured by ``pytest tests/test_bracket.py -k similarity -s`` (brackets and
+Measured by ``pytest tests/test_bracket.py -k similarity_separates -s`` (brackets and
 neighbouring views of the bundled example and of real HDR crops).
 """
 
@@ -28,9 +28,10 @@ from ..views import View
 
 THUMB_SIDE = 96
 """Longest thumbnail side in blocks."""
-MAX_SHIFT_BLOCKS = 2
-"""Hand-held frames are compared at every offset up to this many blocks (2 % of the
-image) and the best is kept: a shift of half a block already decorrelates texture."""
+MAX_SHIFT_BLOCKS = 1
+"""Hand-held frames are compared at every offset up to this many blocks (1 % of the
+image) and the best is kept: a shift of half a block already decorrelates texture,
+and larger searches make neighbouring views alike too."""
 CLIP_ENCODED = 0.95
 NOISE_FLOOR_ENCODED = 0.1
 """Encoded level (about 25 of 255) under which 8-bit quantisation and noise dominate."""
