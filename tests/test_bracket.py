@@ -350,12 +350,14 @@ def test_capture_time_reads_subseconds(tmp_path):
         "Exif:SubsecTimeOriginal") == "25"
 
 
-def test_grouping_file_overrides_and_unlisted_photos_stay_single(tmp_path):
+@pytest.mark.parametrize("form", ["json", "text"])
+def test_grouping_file_overrides_and_unlisted_photos_stay_single(tmp_path, form):
     truth = scene()
     a = write_bracket_folder(tmp_path / "p", truth, [0.0025, 0.01, 0.04], "a")
     write_bracket_folder(tmp_path / "p", scene(seed=5), [0.01], "z")
-    groups = tmp_path / "groups.json"
-    groups.write_text(json.dumps([[p.name for p in a[:2]]]))
+    groups = tmp_path / f"groups.{form}"
+    groups.write_text(json.dumps([[p.name for p in a[:2]]]) if form == "json" else
+                      "# one view a line\na1: a0.jpg a1.jpg  # the first two\n")
     out = tmp_path / "hdr"
     r = run_cli("hdr", str(tmp_path / "p"), "-o", str(out), "--group-file", str(groups),
                 "--json", "-q", "--working-space", "lin_rec709")

@@ -18,8 +18,9 @@ HELP = "uplift LDR photos to scene-linear HDR EXRs (one per photo)"
 METHODS = {"linear": "uplift.linear", "bracket": "uplift.bracket",
            "recursive": "uplift.recursive"}
 DESCRIPTION = """\
-Uplift photos to HDR: one EXR per photo, named after it, in the working space
-(ACEScg by default), with the method, EV steps and clipped fractions in its
+Uplift photos to HDR: one EXR per photo, named after it (with bracket: one per
+bracket, named after its middle exposure), in the working space (ACEScg by
+default), with the method, source photos, EV steps and clipped fractions in its
 header. Values are relative radiance normalised to the set's median EXIF
 exposure.
 
