@@ -57,8 +57,10 @@ def photo_of_view(view: View) -> Photo:
 
 
 def view_similarity(views: Sequence[View | None]) -> Similar:
-    """``similar(i, j)`` for :func:`.grouping.plan_groups`: thumbnails made once, on demand."""
+    """``similar(i, j)`` for :func:`.grouping.plan_groups`: thumbnails and pairs computed
+    once, on demand (the split search asks about a pair once per candidate bracket)."""
     thumbs: dict[int, Thumbnail] = {}
+    pairs: dict[tuple[int, int], float | None] = {}
 
     def thumb(i: int) -> Thumbnail:
         if i not in thumbs:
@@ -68,7 +70,10 @@ def view_similarity(views: Sequence[View | None]) -> Similar:
     def similar(i: int, j: int) -> float | None:
         if views[i] is None or views[j] is None:
             return None
-        return similarity(thumb(i), thumb(j))
+        key = (min(i, j), max(i, j))
+        if key not in pairs:
+            pairs[key] = similarity(thumb(key[0]), thumb(key[1]))
+        return pairs[key]
 
     return similar
 
