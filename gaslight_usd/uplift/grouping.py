@@ -75,7 +75,8 @@ class Photo:
 
 @dataclass
 class Bracket:
-    """The photos of one view (a View or a Photo each), in capture order."""
+    """The photos of one view, in capture order: indices into the photo list while
+    :func:`plan_groups` plans, Views (or Photos) once the caller maps them."""
 
     name: str
     views: list[Any]
