@@ -4,7 +4,10 @@ Options: ``group_file`` (explicit grouping), ``response`` (``ocio``: the input
 space's transform, default; ``debevec``: recovered from each bracket),
 ``align`` (default on), ``save_stacks``. Refuses with an InputError when the
 photos hold no bracket. One EXR per view, named after the bracket's middle
-exposure; photos that form no bracket of their own are linearised alone.
+exposure (or its name in the grouping file); photos that form no bracket of
+their own are linearised alone. How the photos were grouped is summarised, kept
+in the stage result (``metadata["grouping"]``, so in report.json) and in each
+EXR's header (``gaslight:bracket``: the source frames, ``gaslight:grouped_by``).
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ from gaslight_usd.registry import Converter
 from gaslight_usd.uplift.bracket import (
     check_bracket,
     find_brackets,
-    group_brackets,
+    group_views,
     merge_bracket,
     recover_response,
 )
@@ -34,7 +37,11 @@ def merge(ctx: StageContext) -> StageResult:
     group_file = ctx.options.get("group_file")
     group_file = Path(group_file) if group_file else None
     views = load_views(folder, s.input_space, s.working_space, s.ocio_config)
-    brackets = group_brackets(views, group_file)
+    grouping = group_views(views, group_file)
+    brackets = grouping.brackets
+    ctx.progress.message(grouping.lines()[0])
+    for warning in grouping.warnings:
+        ctx.progress.message(f"warning: {warning}")
     if not any(b.is_bracket for b in brackets):
         raise InputError("the photos hold no exposure brackets (every view has a single "
                          "exposure, or EXIF exposure times are missing); use --method "
@@ -44,7 +51,7 @@ def merge(ctx: StageContext) -> StageResult:
     ctx.output.mkdir(parents=True, exist_ok=True)
     merged_count, spans = 0, []
     for i, bracket in enumerate(brackets, start=1):
-        if len(bracket.views) > 1 or group_file:
+        if len(bracket.views) > 1:
             check_bracket(bracket, group_file or folder)
         stack = [v.encoded for v in bracket.views]
         evs = bracket.evs
@@ -57,6 +64,7 @@ def merge(ctx: StageContext) -> StageResult:
         darkest = stack[int(np.argmin(evs))]
         attrs = {
             "gaslight:bracket": ",".join(v.path.name for v in bracket.views),
+            "gaslight:grouped_by": bracket.how,
             "gaslight:bracket_evs": [float(e) for e in result.evs],
             "gaslight:ev_steps": len(stack) - 1,
             "gaslight:min_ev": float(min(result.evs)),
@@ -65,7 +73,7 @@ def merge(ctx: StageContext) -> StageResult:
             "gaslight:clipped_fraction_after": float(np.mean(darkest.max(axis=-1)
                                                             >= CLIP_LEVEL)),
         }
-        ref.name = bracket.name if group_file else ref.name
+        ref.name = bracket.name
         write_hdr_view(ctx.output, ref, np.maximum(radiance, 0), s.working_space, "bracket",
                        attrs, s.ocio_config,
                        clipped_by=bracket.views[int(np.argmin(bracket.evs))])
@@ -75,7 +83,8 @@ def merge(ctx: StageContext) -> StageResult:
         spans.append(max(result.evs) - min(result.evs))
         ctx.progress.update(i, len(brackets), view=ref.name)
     return StageResult(
-        metadata={"method": "bracket", "colour_space": s.working_space, "response": response},
+        metadata={"method": "bracket", "colour_space": s.working_space, "response": response,
+                  "grouping": grouping.as_dict()},
         counts={"views": len(brackets), "brackets": merged_count, "photos": len(views)},
         metrics={"bracket_span_ev_max": float(max(spans))},
     )

@@ -253,3 +253,16 @@ def test_fit_suite_blurred_truth_yardstick_falls_with_the_blur():
     assert soft["probe_log_lum_rmse"] > sharp["probe_log_lum_rmse"]
     assert 24.0 < soft["probe_pu21_psnr_peak"] < 31.0  # about 27: the fit issue's yardstick
     assert soft["probe_pu21_psnr"] < 22.0
+
+
+def test_brackets_suite_groups_every_position_and_scores_the_merge(tmp_path):
+    from gaslight_usd.bench import suite_brackets
+    from gaslight_usd.locate import example_room
+
+    if not (example_room() / "truth" / "view_21.exr").exists():
+        pytest.skip("the bundled example's truth views are not here")
+    rows = suite_brackets.run({"quick": True})
+    assert [r["case"] for r in rows] == [f"position{i}" for i in range(1, 6)]
+    assert all(r["grouped"] == 1 and r["views"] == 7 for r in rows)
+    assert all(r["brightest_clipped"] >= 0.6 for r in rows)
+    assert all(0 < r["median_stop_err"] < 0.1 for r in rows)

@@ -5,7 +5,9 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import subprocess
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -190,3 +192,225 @@ def test_neighbouring_views_of_a_smooth_ceiling_are_not_a_bracket():
         pytest.skip("the bundled example examples/room is missing: it ships with the "
                     "project (git checkout examples/room, or set GASLIGHT_EXAMPLE)")
     assert find_brackets(photos, "sRGB - Texture", "ACEScg") == []
+
+
+# -- brackets grouped the way photographers shoot them (issue 22) ---------------
+
+def _room_scenes() -> list[np.ndarray]:
+    from gaslight_usd.evaluation.bracket_shoot import room_scenes
+    from gaslight_usd.locate import example_room
+
+    if not (example_room() / "truth" / "view_21.exr").exists():
+        pytest.skip("the bundled example's truth views are not here")
+    return room_scenes([0, 6, 9, 15, 21, 3, 12])
+
+
+def _panorama_scenes() -> list[np.ndarray]:
+    from gaslight_usd.evaluation.bracket_shoot import panorama_scenes
+
+    if not (SHARED_HDRI / "night.exr").exists():
+        pytest.skip("shared HDRIs absent")
+    return panorama_scenes(7, folder=SHARED_HDRI)
+
+
+SCENES = {"room": _room_scenes, "panoramas": _panorama_scenes}
+
+
+def _frame_stats(pos) -> tuple[float, float]:
+    """(clipped fraction of the brightest frame, median encoded level of the darkest)."""
+    by_time = sorted(pos.frames, key=lambda f: f.true_time)
+    bright = read_image(by_time[-1].path).pixels.max(axis=-1)
+    dark = read_image(by_time[0].path).pixels.max(axis=-1)
+    return float(np.mean(bright >= 0.99)), float(np.median(dark))
+
+
+@pytest.mark.parametrize("source", SCENES)
+def test_aeb_folder_gives_one_hdr_view_per_position(tmp_path, source):
+    """Five positions shot as AEB brackets (0/-2/+2 three times, -4..+4, 0/-3/+3/-6/+6),
+    hand-held, brightest frames >= 60 % clipped, singles between, all in one folder:
+    one HDR view per position (the old grouping made 12 views of these 21 photos)."""
+    from gaslight_usd.evaluation.bracket_shoot import aeb_shoot
+
+    scenes = SCENES[source]()
+    shoot = aeb_shoot(scenes[:5], tmp_path / "photos", scenes[5:7])
+    stats = [_frame_stats(p) for p in shoot.positions]
+    assert all(clipped >= 0.6 for clipped, _ in stats), stats
+    assert min(dark for _, dark in stats) < 0.05, stats  # a nearly black darkest frame
+    out = tmp_path / "hdr"
+    r = run_cli("hdr", str(tmp_path / "photos"), "-o", str(out), "--method", "bracket",
+                "--working-space", "lin_rec709", "--json", "-q")
+    assert r.returncode == 0, r.stderr
+    result = json.loads(r.stdout)
+    groups = [v["photos"] for v in result["grouping"]["views"]]
+    expected = [[p.name for p in pos.photos] for pos in shoot.positions]
+    expected += [[p.name for p in s.photos] for s in shoot.singles]
+    assert sorted(groups) == sorted(expected)
+    assert result["views"] == 7 and result["brackets"] == 5
+    report = json.loads((out / "report.json").read_text())
+    assert report["stages"][0]["metadata"]["grouping"] == result["grouping"]
+    (warning,) = result["grouping"]["warnings"]  # the lone frame shot right after bracket 2
+    assert warning.startswith(f"{shoot.singles[0].photos[0].name} is left as a view of its own")
+    assert "differs" in warning
+    exrs = {read_image(p).metadata["gaslight:bracket"]: p for p in out.glob("*.exr")}
+    assert len(exrs) == 7
+    for pos in shoot.positions:
+        img = read_image(exrs[",".join(p.name for p in pos.photos)])
+        assert img.metadata["gaslight:grouped_by"].endswith("image similarity")
+        truth = pos.expected(img.metadata["gaslight:reference_ev"]).mean(axis=-1)
+        seen = pos.seen()
+        seen[:4], seen[-4:], seen[:, :4], seen[:, -4:] = False, False, False, False
+        err = np.abs(np.log2(np.maximum(img.pixels.mean(axis=-1), 1e-9) / truth))[seen]
+        assert np.median(err) < 0.1, (pos.name, np.median(err))
+
+
+def test_without_capture_times_file_order_groups_the_same(tmp_path):
+    from gaslight_usd.evaluation.bracket_shoot import aeb_shoot
+    from gaslight_usd.uplift.bracket import group_views
+
+    scenes = _room_scenes()
+    shoot = aeb_shoot(scenes[:5], tmp_path / "p", scenes[5:7], capture_time=False)
+    grouping = group_views(load_views(tmp_path / "p", "srgb_tx", "lin_rec709"))
+    assert grouping.order.startswith("file name")
+    got = [[v.path for v in b.views] for b in grouping.brackets if b.is_bracket]
+    assert got == [pos.photos for pos in shoot.positions]
+
+
+def _photo(name: str, ev: float | None, taken: float | None = None):
+    from gaslight_usd.uplift.grouping import Photo
+
+    return Photo(name, Path(f"{name}.jpg"), ev, None if ev is None else 2.0 ** ev,
+                 (4, 6, 3), taken)
+
+
+def _groups(photos, similar=None) -> list[list[str]]:
+    from gaslight_usd.uplift.grouping import plan_groups
+
+    return [[photos[i].name for i in b.views] for b in plan_groups(photos, similar).brackets]
+
+
+def test_capture_time_orders_frames_not_file_names():
+    """Two cards' numbering interleaves the names; the capture times tell the brackets."""
+    evs = [-7, -9, -5]
+    photos = ([_photo(f"b{k}", e, 100.0 + 0.3 * k) for k, e in enumerate(evs)]
+              + [_photo(f"a{k}", e, 110.0 + 0.3 * k) for k, e in enumerate(evs)])
+    assert _groups(photos) == [["b0", "b1", "b2"], ["a0", "a1", "a2"]]
+    untimed = [_photo(p.name, p.ev) for p in photos]  # file order: a0 a1 a2 b0 b1 b2
+    assert _groups(untimed) == [["a0", "a1", "a2"], ["b0", "b1", "b2"]]
+
+
+def test_back_to_back_brackets_stay_apart_and_steps_must_be_constant():
+    cam = [0, -2, 2, 0, -2, 2]  # the camera's order, two brackets 0.3 s apart
+    photos = [_photo(f"p{k}", e - 7, 0.3 * k) for k, e in enumerate(cam)]
+    assert _groups(photos) == [["p0", "p1", "p2"], ["p3", "p4", "p5"]]
+    # auto-exposure drifting by uneven steps is no bracket; a late frame (5 s) is alone
+    drift = [_photo("d0", -7.0, 0), _photo("d1", -6.0, 0.5), _photo("d2", -3.5, 1.0),
+             _photo("d3", -5.0, 6.5)]
+    assert _groups(drift) == [["d0", "d1"], ["d2"], ["d3"]]
+    # rounded shutter labels (1/500, 1/125, 1/30: 2.0 and 2.06 stops) are one step
+    labels = [_photo(f"s{k}", math.log2(t), 0.2 * k) for k, t in
+              enumerate([1 / 125, 1 / 500, 1 / 30])]
+    assert _groups(labels) == [["s0", "s1", "s2"]]
+
+
+def test_similarity_confirms_and_a_pair_with_nothing_to_compare_needs_company():
+    photos = [_photo(f"p{k}", e - 7, 0.3 * k) for k, e in enumerate([0, -2, 2, 4])]
+    sims = {frozenset({1, 0}): None, frozenset({0, 2}): 0.95, frozenset({2, 3}): 0.3}
+    similar = lambda i, j: sims.get(frozenset({i, j}))  # noqa: E731
+    # the nearly black p1 joins (nothing to compare), p3 of another view does not
+    assert _groups(photos, similar) == [["p0", "p1", "p2"], ["p3"]]
+    from gaslight_usd.uplift.grouping import plan_groups
+
+    grouping = plan_groups(photos, similar)
+    assert grouping.brackets[0].similarity == [None, 0.95]
+    (warning,) = grouping.warnings
+    assert warning.startswith("p3.jpg is left as a view of its own") and "0.30" in warning
+    # a pair that nothing confirms is no bracket
+    assert _groups(photos[:2], lambda i, j: None) == [["p0"], ["p1"]]
+
+
+def test_capture_time_reads_subseconds(tmp_path):
+    import OpenImageIO as oiio
+
+    from gaslight_usd.evaluation.bracket_shoot import write_photo
+    from gaslight_usd.imageio import read_header
+    from gaslight_usd.uplift.grouping import capture_time, read_photo
+
+    when = datetime(2026, 11, 24, 10, 0, 1, 250000)
+    path = write_photo(tmp_path / "x.jpg", np.full((8, 8, 3), 0.5, np.float32), 1 / 60, when)
+    assert capture_time(read_header(path)) == pytest.approx(when.timestamp(), abs=1e-6)
+    photo = read_photo(path)
+    assert photo.exposure_time == pytest.approx(1 / 60, rel=1e-3)
+    assert photo.ev == pytest.approx(math.log2(1 / 60 / 64), abs=1e-3)  # f/8, ISO 100
+    assert oiio.ImageInput.open(str(path)).spec().getattribute(
+        "Exif:SubsecTimeOriginal") == "25"
+
+
+@pytest.mark.parametrize("form", ["json", "text"])
+def test_grouping_file_overrides_and_unlisted_photos_stay_single(tmp_path, form):
+    truth = scene()
+    a = write_bracket_folder(tmp_path / "p", truth, [0.0025, 0.01, 0.04], "a")
+    write_bracket_folder(tmp_path / "p", scene(seed=5), [0.01], "z")
+    groups = tmp_path / f"groups.{form}"
+    groups.write_text(json.dumps([[p.name for p in a[:2]]]) if form == "json" else
+                      "# one view a line\na1: a0.jpg a1.jpg  # the first two\n")
+    out = tmp_path / "hdr"
+    r = run_cli("hdr", str(tmp_path / "p"), "-o", str(out), "--group-file", str(groups),
+                "--json", "-q", "--working-space", "lin_rec709")
+    assert r.returncode == 0, r.stderr
+    grouping = json.loads(r.stdout)["grouping"]
+    assert [v["photos"] for v in grouping["views"]] == [
+        ["a0.jpg", "a1.jpg"], ["a2.jpg"], ["z0.jpg"]]
+    assert grouping["views"][0]["how"] == "grouping file"
+    assert "2 photo(s) not in the grouping file" in grouping["warnings"][0]
+    header = read_image(out / "a1.exr").metadata  # named after its middle exposure
+    assert header["gaslight:bracket"] == "a0.jpg,a1.jpg"
+    assert header["gaslight:grouped_by"] == "grouping file"
+
+
+@pytest.mark.parametrize("content, message", [
+    ({"v": ["a0.jpg"], "w": ["a0.jpg", "a1.jpg"]}, "photo a0.jpg is listed twice"),
+    ({"../v": ["a0.jpg", "a1.jpg"]}, "cannot name a file"),
+    ({"a2": ["a0.jpg", "a1.jpg"]}, "would name two HDR views"),
+    ({"v": ["a0.jpg", "nope.jpg"]}, "not in the input: nope.jpg"),
+    ({"v": []}, "lists no photos"),
+])
+def test_bad_grouping_files_are_refused_with_one_line(tmp_path, content, message):
+    write_bracket_folder(tmp_path / "p", scene(), [0.0025, 0.01, 0.04], "a")
+    groups = tmp_path / "groups.json"
+    groups.write_text(json.dumps(content))
+    out = tmp_path / "hdr"
+    r = run_cli("hdr", str(tmp_path / "p"), "-o", str(out), "--group-file", str(groups))
+    assert r.returncode == 3 and message in r.stderr and "Traceback" not in r.stderr
+    assert str(groups) in r.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("source", SCENES)
+def test_similarity_separates_brackets_from_neighbouring_views(tmp_path, source):
+    """Exposure neighbours of hand-held AEB brackets (brightest >= 60 % clipped) score at
+    least SAME_VIEW_SIMILARITY; no two photos of the bundled example (neighbouring views
+    of one room, a smooth ceiling among them) do. Prints both sides of the margin."""
+    from gaslight_usd.evaluation.bracket_shoot import aeb_shoot
+    from gaslight_usd.locate import example_room
+    from gaslight_usd.uplift.grouping import SAME_VIEW_SIMILARITY
+    from gaslight_usd.uplift.similarity import similarity, thumbnail
+
+    scenes = SCENES[source]()
+    shoot = aeb_shoot(scenes[:5], tmp_path / "p", scenes[5:7])
+    same = []
+    for pos in shoot.positions:
+        frames = sorted(pos.frames, key=lambda f: f.true_time)
+        thumbs = [thumbnail(v) for v in load_views([f.path for f in frames], "srgb_tx",
+                                                   "lin_rec709")]
+        same += [similarity(a, b) for a, b in zip(thumbs[:-1], thumbs[1:], strict=True)]
+    measured = [s for s in same if s is not None]
+    photos = sorted((example_room() / "photos").glob("*.jpg"))
+    thumbs = [thumbnail(v) for v in load_views(photos, "srgb_tx", "lin_rec709")]
+    other = [similarity(thumbs[i], thumbs[j]) for i in range(len(thumbs))
+             for j in range(i + 1, len(thumbs))]
+    other = [s for s in other if s is not None]
+    print(f"\n{source}: bracket neighbours min {min(measured):.3f} ({len(measured)} of "
+          f"{len(same)} pairs measurable); example's different views max {max(other):.3f} "
+          f"({len(other)} pairs); threshold {SAME_VIEW_SIMILARITY}")
+    assert len(measured) >= 0.7 * len(same)
+    assert min(measured) >= SAME_VIEW_SIMILARITY > max(other)

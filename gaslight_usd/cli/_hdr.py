@@ -18,15 +18,16 @@ HELP = "uplift LDR photos to scene-linear HDR EXRs (one per photo)"
 METHODS = {"linear": "uplift.linear", "bracket": "uplift.bracket",
            "recursive": "uplift.recursive"}
 DESCRIPTION = """\
-Uplift photos to HDR: one EXR per photo, named after it, in the working space
-(ACEScg by default), with the method, EV steps and clipped fractions in its
+Uplift photos to HDR: one EXR per photo, named after it (with bracket: one per
+bracket, named after its middle exposure), in the working space (ACEScg by
+default), with the method, source photos, EV steps and clipped fractions in its
 header. Values are relative radiance normalised to the set's median EXIF
 exposure.
 
 methods:
   linear     the photo linearised, no uplift (the baseline; lamps stay clipped)
-  bracket    merge bracketed exposures of each view (grouped by EXIF exposure and
-             capture time, or --group-file); refuses photos that hold no bracket
+  bracket    merge bracketed exposures of each view; photos that are no bracket
+             are linearised alone; refuses photos that hold no bracket at all
   recursive  GaSLight recursive exposure prediction: a predictor renders the photo
              2 EV darker, again and again until nothing is above --threshold
              (at most 6 steps, EV -12); the stack is merged (Debevec, log domain)
@@ -38,6 +39,19 @@ predictors (--predictor, recursive only):
              or $GASLIGHT_WEIGHTS (needs the optional `diffusers` package)
   reexpose   no prediction (clipped regions stay flat; a baseline)
   oracle     tests and benchmarks only (needs a ground-truth HDR)
+
+bracket grouping (printed, and kept in report.json and each EXR's header):
+  Photos are taken in capture order (EXIF DateTimeOriginal + SubSecTimeOriginal
+  when every photo has it, else file names). A bracket is a run of consecutive
+  photos of one size, shot at most 2 s apart, whose exposures (EXIF exposure
+  time, f-number, ISO) step by a constant ratio once sorted (0/-2/+2 EV and
+  -2/0/+2 EV alike), each frame looking like its nearest exposure where both are
+  unclipped and above the noise floor. A photo left alone beside a bracket is
+  warned about. --group-file FILE overrides, one view per entry, file names
+  relative to the photo folder; unlisted photos become views of their own:
+    text:  hall: IMG_0101.jpg IMG_0102.jpg IMG_0103.jpg   (# starts a comment)
+    JSON:  {"hall": ["IMG_0101.jpg", "IMG_0102.jpg"], ...}
+           or [["IMG_0101.jpg", "IMG_0102.jpg"], ...] (named after the middle exposure)
 
 A 2:1 photo is treated as a lat-long panorama: uplifted face by face on a cube
 and blended back (--panorama off to disable).
@@ -70,7 +84,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     u.add_argument("--save-stacks", action="store_true",
                    help="write the exposure stacks as 16-bit PNGs under HDR_DIR/stacks")
     u.add_argument("--group-file", type=Path, metavar="FILE",
-                   help="bracket grouping: JSON {view: [photos]} or lines 'view: a.jpg b.jpg'")
+                   help="bracket grouping that overrides EXIF: lines 'view: a.jpg b.jpg' or "
+                        "JSON {view: [photos]} / [[photos], ...] (see above)")
     u.add_argument("--response", choices=["ocio", "debevec"], default="ocio",
                    help="bracket camera response: the --input-space transform (default) or "
                         "recovered from each bracket (Debevec-Malik)")
@@ -144,6 +159,25 @@ def run(args: argparse.Namespace) -> int:
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     record = runner.records[-1]
-    emit(args, {"output": str(arts[Kind.HDR_VIEWS].path), **record.counts, **record.metrics},
-         f"wrote {record.counts.get('views')} HDR views to {out} ({method})")
+    grouping = record.metadata.get("grouping")
+    data = {"output": str(arts[Kind.HDR_VIEWS].path), **record.counts, **record.metrics}
+    text = f"wrote {record.counts.get('views')} HDR views to {out} ({method})"
+    if grouping:
+        data["grouping"] = grouping
+        text += "\n" + "\n".join(grouping_lines(grouping))
+    emit(args, data, text)
     return 0
+
+
+def grouping_lines(grouping: dict) -> list[str]:
+    """What became of each photo: one line per HDR view, then the warnings."""
+    lines = [f"grouping ({grouping['order']}): {grouping['brackets']} bracket(s), "
+             f"{grouping['singles']} single photo(s)"]
+    for view in grouping["views"]:
+        how = view["how"]
+        if len(view["photos"]) > 1:
+            step = f", {view['step_ev']:.2g} EV apart" if view.get("step_ev") else ""
+            how = f"{len(view['photos'])} frames{step}; {how}"
+        lines.append(f"  {view['name']}.exr <- {' '.join(view['photos'])} ({how})")
+    lines += [f"warning: {w}" for w in grouping.get("warnings", [])]
+    return lines

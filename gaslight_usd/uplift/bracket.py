@@ -1,12 +1,8 @@
 """Exposure brackets: group the photos of one view, recover the response, align, merge.
 
-Grouping: an explicit grouping file, or EXIF. Photos are taken in name order;
-a bracket is a run of consecutive photos of the same size whose exposures all
-differ (a repeated exposure, a size change or, when EXIF capture times exist,
-a gap of more than ``MAX_GAP_S`` seconds starts the next view).
-
-Grouping file: JSON ``{"view": ["a.jpg", "b.jpg"], ...}`` or text lines
-``view: a.jpg b.jpg`` (file names relative to the photo folder).
+Grouping (:mod:`.grouping`): capture order, EXIF exposures that step by a
+constant ratio, confirmed by image similarity where both frames saw the scene
+(:mod:`.similarity`); or an explicit grouping file.
 
 Response: the photo's OCIO input transform (default) or the Debevec-Malik
 least-squares recovery from the bracket itself. Alignment: a translation per
@@ -18,11 +14,8 @@ highlights, the brightest the shadows).
 
 from __future__ import annotations
 
-import json
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -31,189 +24,104 @@ from scipy import ndimage
 from ..errors import InputError
 from ..views import View
 from .curves import Curve, lut_curve
+from .grouping import (  # noqa: F401 (re-exported: the bracket API in one place)
+    MAX_GAP_S,
+    MIN_EV_STEP,
+    SAME_VIEW_SIMILARITY,
+    Bracket,
+    Grouping,
+    Photo,
+    Similar,
+    bracket_candidates,
+    group_from_file,
+    plan_groups,
+    read_group_file,
+    read_photo,
+)
 from .merge import merge_stack
-
-MAX_GAP_S = 2.0
-MIN_EV_STEP = 0.3
+from .similarity import Thumbnail, similarity, thumbnail
 
 
-@dataclass
-class Bracket:
-    name: str
-    views: list[View]
+def photo_of_view(view: View) -> Photo:
+    """The grouping facts of a loaded photo (capture time from its header)."""
+    from ..imageio import exposure_from_spec, read_header
+    from .grouping import capture_time
 
-    @property
-    def evs(self) -> list[float]:
-        return [float(v.ev) if v.ev is not None else 0.0 for v in self.views]
-
-    @property
-    def is_bracket(self) -> bool:
-        evs = self.evs
-        return len(self.views) >= 2 and (max(evs) - min(evs)) >= MIN_EV_STEP
-
-
-def _capture_time(view: View) -> datetime | None:
-    from ..imageio import read_header
-
+    taken = exposure_time = None
     try:
         spec = read_header(view.path)
+        taken, exposure_time = capture_time(spec), exposure_from_spec(spec).exposure_time
     except InputError:
-        return None
-    raw = spec.getattribute("Exif:DateTimeOriginal") or spec.getattribute("DateTime")
-    if not isinstance(raw, str):
-        return None
-    try:
-        return datetime.strptime(raw.strip()[:19], "%Y:%m:%d %H:%M:%S")
-    except ValueError:
-        return None
+        pass
+    return Photo(view.name, view.path, view.ev, exposure_time, view.encoded.shape, taken)
 
 
-@dataclass
-class PhotoInfo:
-    """What grouping needs of a photo, read from its header alone."""
+def view_similarity(views: Sequence[View | None]) -> Similar:
+    """``similar(i, j)`` for :func:`.grouping.plan_groups`: thumbnails and pairs computed
+    once, on demand (the split search asks about a pair once per candidate bracket)."""
+    thumbs: dict[int, Thumbnail] = {}
+    pairs: dict[tuple[int, int], float | None] = {}
 
-    name: str
-    path: Path
-    ev: float | None
-    shape: tuple[int, ...]
+    def thumb(i: int) -> Thumbnail:
+        if i not in thumbs:
+            thumbs[i] = thumbnail(views[i])
+        return thumbs[i]
 
+    def similar(i: int, j: int) -> float | None:
+        if views[i] is None or views[j] is None:
+            return None
+        key = (min(i, j), max(i, j))
+        if key not in pairs:
+            pairs[key] = similarity(thumb(key[0]), thumb(key[1]))
+        return pairs[key]
 
-def photo_infos(paths: Sequence[Path]) -> list[PhotoInfo]:
-    from ..imageio import exposure_from_spec, read_header
-
-    infos = []
-    for p in paths:
-        spec = read_header(p)
-        exp = exposure_from_spec(spec)
-        infos.append(PhotoInfo(Path(p).stem, Path(p), exp.ev if exp.known else None,
-                               (spec.height, spec.width, 3)))
-    return infos
-
-
-def _shape(photo: View | PhotoInfo) -> tuple[int, ...]:
-    return photo.shape if isinstance(photo, PhotoInfo) else photo.encoded.shape
+    return similar
 
 
-def _small_log_luminance(view: View, side: int = 48) -> tuple[np.ndarray, np.ndarray]:
-    enc = view.encoded
-    step = max(1, max(enc.shape[:2]) // side)
-    enc = enc[::step, ::step]
-    lin = view.linear[::step, ::step].mean(axis=-1) / view.exposure_ratio
-    valid = (enc.max(axis=-1) < 0.95) & (enc.max(axis=-1) > 0.05)
-    return np.log2(np.maximum(lin, 1e-6)), valid
-
-
-SAME_VIEW_CORRELATION = 0.85
-"""Least correlation of two photos' exposure-normalised log luminance (48 px) for "one view".
-Brackets (hand-held shifts included) measure 0.97-0.99 in the tests; neighbouring views of
-a smooth ceiling, 1/3 EV apart by auto-exposure, up to 0.70 (the example's view_16/17)."""
-
-
-def same_view(a: View, b: View, min_correlation: float = SAME_VIEW_CORRELATION) -> bool:
-    """Do two photos show the same view? Exposure-normalised luminance must correlate."""
-    la, va = _small_log_luminance(a)
-    lb, vb = _small_log_luminance(b)
-    if la.shape != lb.shape:
-        return False
-    both = va & vb
-    if both.sum() < 16:
-        return True  # nothing comparable (e.g. 4+ stops apart): trust EXIF and sizes
-    x, y = la[both], lb[both]
-    if x.std() < 1e-3 or y.std() < 1e-3:
-        return bool(abs(np.median(x - y)) < 0.5)
-    return bool(np.corrcoef(x, y)[0, 1] >= min_correlation)
+def group_views(views: Sequence[View], group_file: Path | None = None,
+                threshold: float = SAME_VIEW_SIMILARITY) -> Grouping:
+    """Brackets (and single photos) of loaded photos; each Bracket holds its Views."""
+    photos = [photo_of_view(v) for v in views]
+    if group_file:
+        grouping = group_from_file(photos, group_file)
+    else:
+        grouping = plan_groups(photos, view_similarity(views), threshold)
+    for b in grouping.brackets:
+        b.views = [views[i] for i in b.views]
+    return grouping
 
 
 def group_by_exif(views: Sequence[View]) -> list[Bracket]:
-    """Runs of same-size photos with distinct EXIF exposures (see module doc).
-
-    Accepts :class:`View` or :class:`PhotoInfo` items; with Views (pixels at
-    hand) a photo also has to show the same view as the group's first photo.
-    """
-    groups: list[list[View]] = []
-    last_time: datetime | None = None
-    for view in sorted(views, key=lambda v: v.name):
-        when = _capture_time(view)
-        current = groups[-1] if groups else None
-        starts_new = (
-            current is None or view.ev is None or any(v.ev is None for v in current)
-            or _shape(current[0]) != _shape(view)
-            or any(abs(v.ev - view.ev) < MIN_EV_STEP for v in current)
-            or (when is not None and last_time is not None
-                and abs((when - last_time).total_seconds()) > MAX_GAP_S)
-            or (isinstance(view, View) and not same_view(current[0], view))
-        )
-        if starts_new:
-            groups.append([view])
-        else:
-            current.append(view)
-        last_time = when
-    return [Bracket(g[len(g) // 2].name if len(g) > 2 else g[0].name, g) for g in groups]
-
-
-def read_group_file(path: Path) -> dict[str, list[str]]:
-    """Parse a grouping file (JSON object or ``view: a.jpg b.jpg`` lines)."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError("no such grouping file", path)
-    text = path.read_text()
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError:
-        data = None
-    if data is None:
-        data = {}
-        for n, line in enumerate(text.splitlines(), start=1):
-            line = line.split("#", 1)[0].strip()
-            if not line:
-                continue
-            if ":" not in line:
-                raise InputError(f"line {n}: expected 'view: photo photo ...'", path)
-            name, files = line.split(":", 1)
-            data[name.strip()] = re.split(r"[\s,]+", files.strip())
-    if not isinstance(data, dict) or not all(isinstance(v, list) for v in data.values()):
-        raise InputError("expected an object mapping view names to lists of photos", path)
-    return {str(k): [str(f) for f in v if f] for k, v in data.items()}
-
-
-def group_from_file(views: Sequence[View], path: Path) -> list[Bracket]:
-    by_name = {v.path.name: v for v in views} | {v.name: v for v in views}
-    brackets = []
-    for name, files in read_group_file(path).items():
-        missing = [f for f in files if f not in by_name]
-        if missing:
-            raise InputError(f"view {name!r} names photos that are not in the input: "
-                             + ", ".join(missing), path)
-        brackets.append(Bracket(name, [by_name[f] for f in files]))
-    return brackets
+    """Brackets and single photos of loaded photos, grouped as the camera shot them."""
+    return group_views(views).brackets
 
 
 def group_brackets(views: Sequence[View], group_file: Path | None = None) -> list[Bracket]:
-    return group_from_file(views, group_file) if group_file else group_by_exif(views)
-
-
-def has_brackets(views: Sequence[View | PhotoInfo], group_file: Path | None = None) -> bool:
-    """True when some view was shot as a bracket.
-
-    With :class:`PhotoInfo` items (headers only) this is the EXIF test alone;
-    :func:`find_brackets` also compares the pixels.
-    """
-    if group_file:
-        return True
-    return any(b.is_bracket for b in group_by_exif(views))
+    return group_views(views, group_file).brackets
 
 
 def find_brackets(paths: Sequence[Path], input_space: str, working_space: str,
                   config_uri: str | None = None) -> list[Bracket]:
-    """Brackets among photo files: EXIF candidates from headers, confirmed by pixels."""
+    """Brackets among photo files: EXIF candidates from headers, confirmed by pixels.
+
+    Only photos that could be in a bracket by EXIF are decoded.
+    """
     from ..views import load_views
 
-    candidates = [b for b in group_by_exif(photo_infos(paths)) if b.is_bracket]
-    if not candidates:
+    photos = [read_photo(Path(p)) for p in paths]
+    wanted = sorted(bracket_candidates(photos))
+    if not wanted:
         return []
-    views = load_views([p.path for b in candidates for p in b.views], input_space,
-                       working_space, config_uri)
-    return [b for b in group_by_exif(views) if b.is_bracket]
+    loaded = load_views([photos[i].path for i in wanted], input_space, working_space,
+                        config_uri)
+    views: list[View | None] = [None] * len(photos)
+    for i, v in zip(wanted, loaded, strict=True):
+        views[i] = v
+    grouping = plan_groups(photos, view_similarity(views))
+    found = [b for b in grouping.brackets if len(b.views) > 1]
+    for b in found:
+        b.views = [views[i] for i in b.views]
+    return [b for b in found if b.is_bracket]
 
 
 def check_bracket(bracket: Bracket, where: Path | None = None) -> None:
