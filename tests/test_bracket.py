@@ -208,9 +208,7 @@ def _room_scenes() -> list[np.ndarray]:
 def _panorama_scenes() -> list[np.ndarray]:
     from gaslight_usd.evaluation.bracket_shoot import panorama_scenes
 
-    if not (SHARED_HDRI / "night.exr").exists():
-        pytest.skip("shared HDRIs absent")
-    return panorama_scenes(7, folder=SHARED_HDRI)
+    return panorama_scenes(7, folder=TEST_HDRI)
 
 
 SCENES = {"room": _room_scenes, "panoramas": _panorama_scenes}
