@@ -37,6 +37,7 @@ import torch
 
 from ..cameras import PinholeCamera
 from ..devices import resolve_device
+from ..errors import InputError
 from ..progress import Progress
 from ..render import render
 from ..splats import SplatScene
@@ -48,6 +49,7 @@ from .init import initial_points, neighbour_scales
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .pose_refine import PoseRefiner
+from .power import infer_light_power
 from .presets import FitConfig
 from .triangulate import triangulate_views
 
@@ -72,6 +74,17 @@ def scene_extent(data: FitData, train: list[int]) -> float:
     return max(extent, 1e-2)
 
 
+def _luminance_weights(space: str) -> np.ndarray:
+    """Y weights of the views' colour space (Rec.709's when it is unnamed or unknown)."""
+    from ..colour import luminance_weights
+
+    try:
+        return luminance_weights(space) if space else np.array([0.2126, 0.7152, 0.0722],
+                                                               np.float32)
+    except InputError:  # an in-memory scene with a made-up space name
+        return np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
 def _order(step: int, n: int, seed: int) -> int:
     """The view of a step: a fresh seeded permutation of the training views each epoch."""
     epoch, pos = divmod(step, n)
@@ -89,6 +102,10 @@ class Trainer:
         self.train, self.held = data.split(config.holdout_every)
         self.extent = scene_extent(data, self.train)
         self.targets = [torch.as_tensor(im, device=device) for im in data.images]
+        self.floors = [None if not config.clip_bounds or (f := data.floor(i)) is None
+                       else torch.as_tensor(f, device=device)
+                       for i in range(len(data.images))]
+        self.y_weights = torch.as_tensor(_luminance_weights(data.colour_space), device=device)
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
 
@@ -281,7 +298,8 @@ class Trainer:
             out = render(self.model.params(self.active_degree()), cam,
                          background=self._training_background(), sh_degree=self.active_degree(),
                          pose=self.refiner.pose(k) if self.refiner else None)
-            loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight)
+            loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight,
+                            self.floors[view], self.y_weights, cfg.clip_fill_weight)
             if cfg.elongation_weight:
                 loss = loss + cfg.elongation_weight * elongation_penalty(
                     self.model.t["log_scales"], cfg.elongation_limit)
@@ -329,8 +347,16 @@ class Trainer:
                                    cfg.backdrop_tiles, room=cfg.budget - scene.count)
         if backdrop.count:
             scene = concatenate(scene, backdrop)
-            if self.held:
-                scores = self._evaluate_scene(scene, self.held)
+        lights = []
+        train_floors = [self.data.floor(i) for i in self.train]
+        if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):
+            self.progress.message("inferring the clipped lights' power from the lit surfaces")
+            scene, lights = infer_light_power(
+                scene, [cams[i] for i in self.train], train_floors,
+                self.y_weights.cpu().numpy(), self.extent,
+                measured=scene.count - backdrop.count, seed=self.seed)
+        if (backdrop.count or lights) and self.held:
+            scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
         metrics = {
             "splats": scene.count,
@@ -346,6 +372,7 @@ class Trainer:
             "fit_seconds": round(seconds, 2),
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
+            "clipped_lights": [light.as_dict() for light in lights],
         }
         if self.refiner is not None:
             metrics["pose_refinement"] = self.refiner.summary(
