@@ -1,0 +1,265 @@
+"""Bench suite "chain": the light that comes out of the PHOTOS, on rooms never tuned on.
+
+Each scene is a room rendered by ``examples/make_room.py`` (the bundled example
+``room`` and the variants ``bulb``, ``panels``, ``shade``: other lights, albedos
+and photo counts; rendered into ``<out>/scenes/`` the first time, about 2-3 min
+each on 2 cores). For every scene the chain runs from its LDR photos with the
+true poses (so the uplift and the fit are measured, not SfM), once per method:
+
+* ``truth HDR`` -- the fit from the true HDR views: the ceiling of what the fit can do;
+* ``clipped photos`` -- the photos linearised, clipped lights left clipped: the floor;
+* ``recursive`` -- GaSLight's recursive uplift (fast predictor), clipped pixels fitted
+  as bounds (:func:`gaslight_usd.fit.losses.bounded_l1`);
+* ``recursive, fills as targets`` -- the same uplift, its fills fitted like measurements
+  (the behaviour before bounds), to show what the bound-aware loss buys.
+
+Then lat-long panoramas are drawn at the scene's probes (the room's middle and
+0.5 m from its lights) and scored against the path-traced probes, in absolute
+units (a photo-derived HDR view's relative radiance times the EXIF exposure and
+the scene's camera constant K gives radiance; the bench knows K, a user would not):
+
+* ``irradiance_psnr`` -- diffuse irradiance over 64 normals, PSNR against its peak;
+* ``relight_psnr`` -- the GaSLight relight protocol (Mitsuba sphere + plane);
+* ``pu21_psnr_peak`` -- PU21-PSNR with the truth's peak at 1000 cd/m^2;
+* ``power_err_<light>`` -- log2(found / true) of the light arriving at the probe from
+  each true light's direction (a cone 5 degrees wider than the light), in stops.
+
+Rows are one per (scene, method, probe); the chart puts each method's median
+irradiance PSNR against its chain seconds (uplift + fit).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..cameras import latlong_directions, latlong_solid_angles
+from ..colour import convert
+from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
+from ..fit import fit_splats, load_fit_data, preset
+from ..imageio import read_image
+from ..locate import example_room, find_data
+from ..render.envmap import render_latlong
+from ..splats import SplatScene
+
+NAME = "chain"
+DESCRIPTION = "the light from the photos: probe errors per uplift method vs the true-HDR ceiling"
+X = ("seconds", "uplift + fit seconds")
+Y = ("irradiance_psnr", "probe irradiance PSNR (dB)")
+HIGHER_IS_BETTER = True
+TABLE = ("scene", "probe", "seconds", "irradiance_psnr", "relight_psnr", "pu21_psnr_peak",
+         "power_err_stops_max")
+REFERENCES = ("truth HDR", "clipped photos")
+SCENES = ("room", "bulb", "panels", "shade")
+METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets")
+TRUTH_SPACE = "lin_rec709_scene"
+CONE_MARGIN_DEG = 5.0
+MIN_CONE_DEG = 6.0
+
+
+def notes(options: dict[str, Any]) -> list[str]:
+    return [f"preset {options.get('preset_name') or 'fast'}; true poses; probe panoramas "
+            "scored in absolute radiance (EXIF exposure x the scene's camera constant K)"]
+
+
+# -- scenes ---------------------------------------------------------------------------------
+
+def scene_dir(name: str, out: Path, progress=None) -> Path:
+    """The scene's folder: the bundled example, or a variant rendered once into ``out``."""
+    if name == "room":
+        return example_room()
+    folder = out / "scenes" / name
+    if (folder / "digests.json").exists():
+        return folder
+    script = find_data("examples/make_room.py")
+    if not script.exists():
+        raise FileNotFoundError("examples/make_room.py not found: run the bench from a checkout")
+    if progress is not None:
+        progress.message(f"rendering scene {name!r} with Mitsuba (2-3 min on 2 cores)")
+    subprocess.run([sys.executable, str(script), "--variant", name, "--out", str(folder)],
+                   check=True, stdout=subprocess.DEVNULL)
+    return folder
+
+
+def scene_lights(info: dict[str, Any]) -> list[dict[str, Any]]:
+    """The true emitters: ``scene.json``'s ``lights`` (variants) or its lamp and window."""
+    if "lights" in info:
+        return info["lights"]
+    lamp, win = info["lamp"], info["window"]
+    return [{"name": "lamp", "kind": "sphere", "center": lamp["center"],
+             "radius": lamp["radius"], "radiance": lamp["radiance"]},
+            {"name": "window", "kind": "rectangle", "center": win["center"],
+             "corners": win["corners"], "normal": win["normal"], "radiance": win["radiance"]}]
+
+
+def light_cone(light: dict[str, Any], position: np.ndarray) -> tuple[np.ndarray, float]:
+    """Unit direction from ``position`` to the light and the cone half-angle (radians)
+    that holds it, widened by :data:`CONE_MARGIN_DEG`."""
+    centre = np.asarray(light["center"], np.float64)
+    d = centre - position
+    dist = float(np.linalg.norm(d))
+    axis = d / dist
+    if light["kind"] == "sphere":
+        half = math.asin(min(1.0, light["radius"] / dist))
+    else:
+        corners = np.asarray(light["corners"], np.float64) - position
+        corners /= np.linalg.norm(corners, axis=1, keepdims=True)
+        half = float(np.arccos(np.clip(corners @ axis, -1, 1)).max())
+    return axis, max(half + math.radians(CONE_MARGIN_DEG), math.radians(MIN_CONE_DEG))
+
+
+# -- scores ---------------------------------------------------------------------------------
+
+def fibonacci_normals(n: int = 64) -> np.ndarray:
+    """``n`` unit vectors spread evenly over the sphere."""
+    i = np.arange(n) + 0.5
+    phi = np.arccos(1 - 2 * i / n)
+    theta = math.pi * (1 + 5 ** 0.5) * i
+    return np.stack([np.cos(theta) * np.sin(phi), np.cos(phi), np.sin(theta) * np.sin(phi)], 1)
+
+
+def irradiance_luminance(pano: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Luminance of the irradiance of a Rec.709 lat-long panorama on ``normals``."""
+    h, w = pano.shape[:2]
+    dirs = latlong_directions(w, h).reshape(-1, 3)
+    d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w)).reshape(-1)
+    lum = pano.reshape(-1, 3).astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    return (np.clip(dirs @ normals.T, 0.0, None) * (d_omega * lum)[:, None]).sum(0)
+
+
+def irradiance_psnr(pano: np.ndarray, truth: np.ndarray) -> float:
+    """PSNR of the irradiance luminance over 64 normals, the truth's largest as the peak."""
+    normals = fibonacci_normals()
+    e_true = irradiance_luminance(truth, normals)
+    e_pred = irradiance_luminance(pano, normals)
+    return psnr_from_mse(float(np.mean((e_pred - e_true) ** 2)), peak=float(e_true.max()))
+
+
+def cone_power(pano: np.ndarray, axis: np.ndarray, half_angle: float) -> float:
+    """Luminance x solid angle of a lat-long panorama inside a cone."""
+    h, w = pano.shape[:2]
+    dirs = latlong_directions(w, h)
+    inside = dirs @ axis >= math.cos(half_angle)
+    d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w))
+    lum = pano.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    return float((lum * d_omega)[inside].sum())
+
+
+def power_errors(pano: np.ndarray, truth: np.ndarray, lights: list[dict[str, Any]],
+                 position: np.ndarray) -> dict[str, float]:
+    """Stops between the found and the true light from each light's direction."""
+    out = {}
+    for light in lights:
+        axis, half = light_cone(light, position)
+        found, true = cone_power(pano, axis, half), cone_power(truth, axis, half)
+        out[f"power_err_{light['name']}"] = float(np.log2(max(found, 1e-9) / max(true, 1e-9)))
+    return out
+
+
+# -- the chain ------------------------------------------------------------------------------
+
+def absolute_scale(hdr_attrs: dict[str, Any], exposure: dict[str, Any]) -> float:
+    """Radiance per unit of relative radiance: the reference exposure's t x K.
+
+    Relative radiance 1 reads as linear 1 at the set's reference EV
+    (``log2(t * ISO/100 / N^2)``); the scene's camera gives photo = radiance x t x K.
+    """
+    ref_ev = float(hdr_attrs.get("gaslight:reference_ev", 0.0))
+    t_ref = 2.0 ** ref_ev * exposure["FNumber"] ** 2 * 100.0 / exposure["ISO"]
+    return 1.0 / (t_ref * exposure["K"])
+
+
+def uplift(photos: Path, out: Path, method: str) -> Path:
+    """Run one uplift converter on the photos; returns the HDR view folder."""
+    from ..kinds import Kind
+    from ..pipeline import Job, run_job
+    from ..progress import Progress
+
+    converter = {"clipped photos": "uplift.linear"}.get(method, "uplift.recursive")
+    job = Job(inputs=[photos], out_dir=out, targets=(Kind.HDR_VIEWS,),
+              choose={"uplift": converter}, resume=False)
+    found = run_job(job, progress=Progress(quiet=True))
+    return found[Kind.HDR_VIEWS].path
+
+
+def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: int,
+                 progress=None) -> tuple[SplatScene, float, float, dict[str, Any]]:
+    """(splats, seconds, scale to absolute Rec.709 radiance, fit metrics) for a method."""
+    t0 = time.perf_counter()
+    info = json.loads((folder / "scene.json").read_text())
+    if method == "truth HDR":
+        hdr, scale = folder / "truth", 1.0
+    else:
+        hdr = uplift(folder / "photos", work, method)
+    cfg = preset(preset_name)
+    if method == "recursive, fills as targets":
+        cfg = cfg.updated(clip_bounds=False)
+    data = load_fit_data(hdr, folder / "sparse" / "0", cfg.downscale)
+    if method != "truth HDR":
+        scale = absolute_scale(data.attributes, info["exposure"])
+    result = fit_splats(data, cfg, seed=seed, progress=progress)
+    return result.scene, time.perf_counter() - t0, scale, result.metrics
+
+
+def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
+               renderer=None) -> list[dict[str, Any]]:
+    """One row per probe: the scores of the module docstring."""
+    info = json.loads((folder / "scene.json").read_text())
+    probes = json.loads((folder / "probes" / "probes.json").read_text())["probes"]
+    lights = scene_lights(info)
+    space = scene.metadata.get("colour_space") or TRUTH_SPACE
+    rows = []
+    for k, probe in enumerate(probes):
+        truth = read_image(folder / "probes" / probe["name"]).pixels
+        pos = np.asarray(probe["position"], np.float64)
+        pano = render_latlong(scene, pos, truth.shape[1])
+        if space != TRUTH_SPACE:
+            pano = convert(pano, space, TRUTH_SPACE)
+        pano = np.maximum(pano * np.float32(scale), 0.0)
+        row: dict[str, Any] = {"probe": k, "irradiance_psnr": irradiance_psnr(pano, truth),
+                               "pu21_psnr_peak": pu21_psnr_peak(pano, truth),
+                               **power_errors(pano, truth, lights, pos)}
+        errs = [abs(v) for key, v in row.items() if key.startswith("power_err_")]
+        row["power_err_stops_max"] = max(errs) if errs else float("nan")
+        if relight:
+            from ..evaluation.relight import relight_scores
+            row["relight_psnr"] = relight_scores(pano, truth, renderer).psnr
+        rows.append(row)
+    return rows
+
+
+def run(options: dict[str, Any]) -> list[dict[str, Any]]:
+    quick = bool(options.get("quick"))
+    seed = int(options.get("seed", 0))
+    out = Path(options.get("out") or ".")
+    progress = options.get("progress")
+    presets = options.get("presets") or ("fast",)
+    scenes = options.get("scenes") or (("room",) if quick else SCENES)
+    methods = ("clipped photos", "recursive") if quick else METHODS
+    renderer = None
+    if not quick:
+        from ..evaluation.relight import RelightRenderer
+        renderer = RelightRenderer()
+    rows: list[dict[str, Any]] = []
+    for scene_name in scenes:
+        folder = scene_dir(scene_name, out, progress)
+        for preset_name in presets:
+            for method in methods:
+                if progress is not None:
+                    progress.message(f"{scene_name}: {method} ({preset_name})")
+                work = out / "work" / scene_name / method.replace(" ", "_").replace(",", "")
+                scene, seconds, scale, metrics = fitted_scene(folder, method, work,
+                                                              preset_name, seed)
+                for row in probe_rows(scene, folder, scale, relight=not quick,
+                                      renderer=renderer):
+                    rows.append({"method": method, "setting": preset_name,
+                                 "scene": scene_name, "seconds": round(seconds, 2),
+                                 "splats": metrics["splats"], **row})
+    return rows
