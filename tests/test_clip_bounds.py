@@ -1,0 +1,82 @@
+"""Clipped pixels are bounds, not targets: the clip floor from photo to fit."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from conftest import write_jpeg
+
+from gaslight_usd.cli.main import main
+from gaslight_usd.colour import luminance_weights
+from gaslight_usd.fit.data import fit_floor
+from gaslight_usd.fit.losses import bounded_l1
+from gaslight_usd.imageio import read_channel, read_image
+from gaslight_usd.views import CLIP_FLOOR_CHANNEL
+
+Y = torch.tensor([0.2126, 0.7152, 0.0722])
+
+
+def test_bounded_l1_penalises_only_radiance_below_the_floor_in_clipped_pixels():
+    target = torch.full((1, 2, 3), 8.0)  # the uplift's fill: 8
+    floor = torch.tensor([[1.0, 0.0]])  # pixel 0 clipped at 1, pixel 1 measured
+    above = torch.full((1, 2, 3), 8.0)
+    above[0, 0] = 20.0  # far above the fill, but above the floor: only the weak pull
+    assert abs(float(bounded_l1(above, target, floor, Y, 0.1)) - 0.1 * 12.0 / 2) < 1e-5
+    below = torch.full((1, 2, 3), 8.0)
+    below[0, 0] = 0.5  # under what the photo recorded: the bound bites
+    expected = (0.1 * 7.5 + 0.5) / 2
+    assert abs(float(bounded_l1(below, target, floor, Y, 0.1)) - expected) < 1e-5
+    # no floor: plain L1
+    assert abs(float(bounded_l1(above, target, None)) - 12.0 / 2) < 1e-5
+
+
+def test_a_view_that_measured_the_light_pins_it_against_another_views_fill():
+    """Two views of one light: one clipped at 1 with a fill of 8 (a guess), one that saw
+    it unclipped at 3. With bounds the light fits 3; fitted as targets it settles between."""
+    def fit(bounds: bool) -> float:
+        x = torch.tensor(1.0, requires_grad=True)
+        opt = torch.optim.Adam([x], lr=0.05)
+        clipped_floor = torch.tensor([[1.0]]) if bounds else None
+        for _ in range(600):
+            opt.zero_grad()
+            pred = x.expand(1, 1, 3)
+            loss = bounded_l1(pred, torch.full((1, 1, 3), 8.0), clipped_floor, Y, 0.1) + \
+                bounded_l1(pred, torch.full((1, 1, 3), 3.0), None)
+            loss.backward()
+            opt.step()
+        return float(x.detach())
+
+    assert abs(fit(True) - 3.0) < 0.1
+    assert fit(False) > 3.5
+
+
+def test_fit_floor_bounds_the_mean_of_a_downscaled_pixel():
+    image = np.ones((2, 4, 3), np.float32)
+    floor = np.zeros((2, 4), np.float32)
+    floor[0, 0] = 5.0  # one clipped photo pixel, recorded luminance 5
+    w = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    out = fit_floor(floor, image, w, 2)
+    assert out.shape == (1, 2)
+    assert abs(out[0, 0] - (5.0 + 3 * 1.0) / 4) < 1e-5  # its block: a bound on the mean
+    assert out[0, 1] == 0.0  # nothing clipped there: measured
+
+
+def test_hdr_views_carry_the_recorded_luminance_where_the_photo_clipped(tmp_path):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    rng = np.random.default_rng(0)
+    pixels = rng.uniform(0.1, 0.6, (48, 64, 3)).astype(np.float32)
+    pixels[10:20, 30:40] = 1.0  # a clipped lamp
+    write_jpeg(photos / "a.jpg", np.round(pixels * 255).astype(np.uint8), exposure_time=1 / 60)
+    write_jpeg(photos / "b.jpg", np.round(pixels * 230).astype(np.uint8), exposure_time=1 / 30)
+    assert main(["hdr", str(photos), "-o", str(tmp_path / "hdr"), "--method", "linear"]) == 0
+    view = tmp_path / "hdr" / "a.exr"
+    floor = read_channel(view, CLIP_FLOOR_CHANNEL)
+    radiance = read_image(view).pixels
+    y = radiance @ luminance_weights(read_image(view).colour_space)
+    assert floor is not None and floor.shape == (48, 64)
+    clipped = floor > 0
+    assert clipped[10:20, 30:40].mean() > 0.9 and clipped.mean() < 0.06
+    # the floor is what the photo recorded there: the linearised clipped pixel
+    np.testing.assert_allclose(floor[clipped], y[clipped], rtol=2e-3)
+    assert read_image(view).pixels.shape == (48, 64, 3)  # RGB readers see RGB only
