@@ -29,6 +29,7 @@ from typing import Any
 from .atomic import write_text
 from .errors import GaslightError, InputError
 from .kinds import Kind
+from .outputs import check_output
 from .pipeline import Job, run_job
 from .progress import Progress
 
@@ -117,7 +118,7 @@ def _run_one(name: str, job: Job, quiet: bool) -> SceneOutcome:
 def run_batch(jobs: list[tuple[str, Job]], out_dir: str | Path, workers: int = 1,
               dask_address: str | None = None, quiet: bool = False) -> dict[str, Any]:
     """Run every scene; never stops at the first failure. Returns the batch report."""
-    out_dir = Path(out_dir)
+    out_dir = check_output(Path(out_dir), folder=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     if dask_address:

@@ -26,6 +26,7 @@ from . import colour
 from .atomic import write_text
 from .errors import InputError, NotBuiltYet, UsageError
 from .kinds import Artifact, Kind
+from .outputs import check_output
 from .progress import Progress
 from .provenance import tool_version, versions
 from .registry import Converter, Registry, default_registry
@@ -143,6 +144,11 @@ def plan(available: Iterable[Kind], target: Kind, registry: Registry,
     return result
 
 
+def _is_folder_output(kind: Kind, path: Path) -> bool:
+    """Whether an output of ``kind`` at ``path`` is a folder (EXR views, a COLMAP model)."""
+    return kind in (Kind.HDR_VIEWS, Kind.POSES, Kind.HDRI) and not path.suffix
+
+
 def _fingerprint_path(path: Path) -> list:
     if not path.exists():
         return [str(path), None]
@@ -217,6 +223,9 @@ class ChainRun:
                              self.registry, choose):
                 if conv not in steps:
                     steps.append(conv)
+        check_output(self.out_dir, folder=True)
+        for kind, path in (outputs or {}).items():
+            check_output(path, folder=_is_folder_output(kind, Path(path)))
         created_out = not self.out_dir.exists()
         self.out_dir.mkdir(parents=True, exist_ok=True)
         state = self._load_state() if resume else {}

@@ -8,8 +8,9 @@ from pathlib import Path
 from ..chain import StageContext
 from ..errors import InputError
 from ..kinds import Artifact, Kind
+from ..outputs import check_output
 from ._common import add_common, emit, progress_from, settings_from
-from ._export import _point
+from ._points import parse_point
 
 HELP = "render lat-long / cube-map EXR HDRIs from the splats at probe points"
 DESCRIPTION = """\
@@ -41,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("hdri", help=HELP, description=DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("splats", type=Path, help="3DGS PLY (linear HDR colours)")
-    p.add_argument("--at", type=_point, action="append", metavar="X,Y,Z",
+    p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point in the splats' world frame (repeat for several; "
                         "default: centre of the splats' bounds)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PROBE.exr",
@@ -72,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--size must be an even number >= 8, got {args.size}")
     if args.output.suffix.lower() != ".exr":
         raise InputError("the output must be an .exr file name", args.output)
+    check_output(args.output, folder=False)
     settings = settings_from(args, device=args.device)
     options = {"at": args.at, "size": args.size, "cube": args.cube, "faces": args.faces,
                "tx": args.tx, "output_space": args.output_space}

@@ -12,6 +12,8 @@ from ..kinds import Kind, detect_kind
 from ..pipeline import DEFAULT_TARGETS, Job, run_job, step_options
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from
+from ._export import _forms
+from ._points import parse_point
 
 HELP = "the whole chain: photos -> HDR views -> poses -> splats -> USD/EXR/PLY"
 DESCRIPTION = """\
@@ -65,10 +67,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--refine-poses", action="store_true",
                    help="optimise small corrections to the training views' poses while "
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
-    p.add_argument("--at", action="append", metavar="X,Y,Z",
+    p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: the centre of the splats)")
-    p.add_argument("--as", dest="export_as", metavar="LIST",
+    p.add_argument("--as", dest="export_as", type=_forms, metavar="LIST",
                    help="USD forms: particlefield,instancer,rig (default: all three)")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
                    help="where fitting and HDRI rendering run: cpu (default) or cuda")
@@ -102,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
             "uplift": {"predictor": args.predictor},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
                     "seed": args.seed, "refine_poses": args.refine_poses or None},
-            "export": {"as": args.export_as},
+            "export": {"as": list(args.export_as) if args.export_as else None},
             "hdri": {"at": args.at, "device": args.device},
         }),
         settings={"ocio_config": args.ocio_config, "input_space": args.input_space,
