@@ -43,7 +43,7 @@ def export_usd_stage(ctx: StageContext) -> StageResult:
         seed=ctx.settings.seed,
     )
     ctx.progress.message(f"exporting {scene.count} splats as {', '.join(opts.variants)}")
-    report = export_usd(scene, out, opts, source=str(src))
+    report = export_usd(scene, out, opts, source=str(src), progress=ctx.progress)
     files = [str(p) for p in report.files]
     metrics = dict(report.metrics)
     if report.errors:

@@ -9,7 +9,9 @@ A manifest (JSON, schema in ``schemas/manifest.schema.json``)::
                 {"name": "stage_b", "inputs": ["b/photos", "b/sparse"],
                  "options": {"fit": {"preset": "balanced"}}}]}
 
-Relative paths are relative to the manifest. Each scene runs into
+The manifest is checked against that schema before any work (an unknown key
+such as ``"opitons"`` is an error naming it). Relative paths are relative to
+the manifest. Each scene runs into
 ``OUT/<name>/`` with its own ``report.json``; the batch writes
 ``OUT/batch-report.json``. Scenes are independent and resumable: a re-run skips
 finished stages, so a failed batch is simply run again.
@@ -28,6 +30,7 @@ from typing import Any
 
 from .atomic import write_text
 from .errors import GaslightError, InputError
+from .jsoncheck import bundled_schema, first_problem
 from .kinds import Kind
 from .outputs import check_output
 from .pipeline import Job, run_job
@@ -66,6 +69,9 @@ def load_manifest(path: str | Path, out_dir: str | Path) -> list[tuple[str, Job]
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc}", path) from exc
+    problem = first_problem(data, bundled_schema("manifest.schema.json"))
+    if problem:
+        raise InputError(f"manifest: {problem}", path)
     scenes = data.get("scenes") if isinstance(data, dict) else None
     if not isinstance(scenes, list) or not scenes:
         raise InputError("manifest needs a non-empty 'scenes' list", path)

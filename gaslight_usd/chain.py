@@ -6,7 +6,9 @@ Resuming: each finished stage is recorded in ``<out>/.gaslight-state.json``
 with a fingerprint of its converter, options and inputs (paths, sizes,
 modification times). A later run with the same fingerprint and the output
 still present skips the stage. Outputs are written atomically by converters,
-so a killed stage leaves nothing that looks finished.
+so a killed stage leaves nothing that looks finished. A stage that was started
+with the same fingerprint and killed is told so (``StageContext.resume``): the
+fit then continues from its checkpoint instead of step 1.
 """
 
 from __future__ import annotations
@@ -66,6 +68,9 @@ class StageContext:
     settings: Settings
     options: dict[str, Any]
     progress: Progress
+    resume: bool = False
+    """Whether the run resumes: a stage may continue its own interrupted work
+    (the fit from its checkpoint) instead of starting over."""
 
     def input(self, kind: Kind) -> Artifact:
         return self.inputs[kind]
@@ -246,8 +251,15 @@ class ChainRun:
                 artifacts[conv.output] = Artifact(conv.output, out_path, record.metadata)
                 continue
             self.progress.message(f"[{label}] {conv.name}: {conv.description}")
+            # A stage started before with the same fingerprint and killed may continue
+            # its own work (the fit from its checkpoint); with other inputs it starts over.
+            started = state.setdefault("started", {})
+            continues = resume and started.get(conv.step) == key
+            started[conv.step] = key
+            self._save_state(state)
             ctx = StageContext(inputs=inputs, output=out_path, settings=self.settings,
-                               options=stage_options, progress=self.progress.child(label))
+                               options=stage_options, progress=self.progress.child(label),
+                               resume=continues)
             t0 = time.perf_counter()
             record = StageRecord(
                 name=conv.step, converter=conv.name,

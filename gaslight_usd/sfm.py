@@ -222,8 +222,9 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             done = [0]
 
             def next_image() -> None:
+                # Called once per image registered after the initial pair (two images).
                 done[0] += 1
-                progress.update(done[0] + 1, len(names), registered=done[0] + 1)
+                progress.update(min(done[0] + 2, len(names)), len(names))
 
             recs = pycolmap.incremental_mapping(db_path, images, work / "sparse",
                                                 options=mapping,
@@ -240,6 +241,8 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             model = read_model(model_dir)
             model.source = None
         registered_images = set(model.names)
+        progress.message(f"registered {len(registered_images)} of {len(names)} images "
+                         f"({len(model.points)} points)")
         registered = [p for p, imgs in owners.items() if set(imgs) & registered_images]
         unregistered = {p: _photo_reason(imgs, reasons) for p, imgs in owners.items()
                         if not set(imgs) & registered_images}

@@ -82,7 +82,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--display-ply", type=Path, metavar="PATH",
                    help="also write a display-referred (tone-mapped) PLY for viewers "
                         "that clip HDR; its exposure is in the header comments")
-    add_common(p, colour=True)
+    add_common(p, colour=True, photos=False)
     p.set_defaults(handler=run)
 
 

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
+from ..errors import InputError
 from ..inspect import describe, format_facts
 from ._common import add_common, emit
+from ._preview import add_preview, check_preview, write_preview_for
 
 HELP = "print what an EXR/HDR image, 3DGS PLY or USD stage holds"
 DESCRIPTION = """\
@@ -17,6 +20,7 @@ by type, ParticleField splat counts and variant sets.
 examples:
   gaslight2usd info out/hdr/view_00.exr
   gaslight2usd info out/splats.ply --json | jq .splats
+  gaslight2usd info out/hdri/probe_000.exr --preview probe.png
 """
 
 
@@ -24,12 +28,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help=HELP, description=DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("files", nargs="+", metavar="FILE", help="EXR, HDR, PLY or USD files")
+    add_preview(p, "the image(s)")
     add_common(p)
     p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    check_preview(args)
     facts = [describe(f) for f in args.files]
+    if args.preview is not None:
+        not_images = [f["file"] for f in facts if f["type"] != "image"]
+        if not_images:
+            raise InputError("--preview draws images only (EXR, HDR, JPEG, PNG, TIFF, .tx)",
+                             not_images[0])
+        write_preview_for(args, [Path(f) for f in args.files], None)
     text = "\n\n".join(format_facts(f) for f in facts)
+    if args.preview is not None:
+        text += f"\n\npreview: {args.preview}"
     emit(args, facts if len(facts) > 1 else facts[0], text)
     return 0

@@ -23,7 +23,8 @@ model or transforms.json (poses), or a 3DGS PLY. What is missing is made; what
 you give is used as is.
 
 OUT holds: hdr/ (one EXR per photo), sparse/ (COLMAP model + frame.json),
-splats.ply, scene.usda (+ .usdc layers), hdri/ (lat-long and cube EXRs) and
+splats.ply, scene.usda (+ .usdc layers), hdri/ (lat-long EXRs; with --cube also
+cube maps), contact-sheet.png (the inputs, HDR views and HDRIs to look at) and
 report.json (stages, seconds, counts, metrics, versions). Re-running the same
 command skips the stages that finished with the same inputs and options.
 
@@ -50,7 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("inputs", nargs="+", type=Path, metavar="INPUT",
                    help="photos folder, HDR EXR folder, COLMAP model / transforms.json, or PLY")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT",
+                   help="output folder (made if missing; a re-run resumes in it)")
     p.add_argument("--to", type=_targets, default=DEFAULT_TARGETS, metavar="LIST",
                    help="what to make: any of hdr,poses,splats,usd,hdri (default: "
                         "splats,usd,hdri)")
@@ -74,7 +76,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="USD forms: particlefield,instancer,rig (default: all three)")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
                    help="where fitting and HDRI rendering run: cpu (default) or cuda")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cube", action="store_true",
+                   help="also write each HDRI as an OpenEXR cube map (NAME.cube.exr)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="random seed of the fit (default 0; a run repeats exactly for a seed)")
     p.add_argument("--fresh", action="store_true",
                    help="ignore finished stages in OUT and redo everything")
     add_common(p, colour=True)
@@ -105,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
                     "seed": args.seed, "refine_poses": args.refine_poses or None},
             "export": {"as": list(args.export_as) if args.export_as else None},
-            "hdri": {"at": args.at, "device": args.device},
+            "hdri": {"at": args.at, "device": args.device, "cube": args.cube or None},
         }),
         settings={"ocio_config": args.ocio_config, "input_space": args.input_space,
                   "working_space": args.working_space, "device": args.device,
@@ -115,8 +120,14 @@ def run(args: argparse.Namespace) -> int:
     artifacts = run_job(job, registry, progress_from(args), command=["gaslight2usd", *sys.argv[1:]])
     report = json.loads((args.output / "report.json").read_text())
     lines = [f"{a.kind.value:10s} {a.path}" for a in artifacts.values()]
+    from ..preview import CONTACT_SHEET
+
+    sheet = args.output / CONTACT_SHEET
+    if sheet.exists():
+        lines.append(f"pictures   {sheet}")
     lines.append(f"report     {args.output / 'report.json'} "
                  f"({report['total_seconds']:.1f} s)")
     emit(args, {"outputs": {k.value: str(a.path) for k, a in artifacts.items()},
+                "pictures": str(sheet) if sheet.exists() else None,
                 "report": report}, "\n".join(lines))
     return 0

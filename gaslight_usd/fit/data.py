@@ -38,6 +38,8 @@ class FitData:
     downscale: int = 1
     paths: list[Path] = field(default_factory=list)
     """The full-resolution HDR view of each camera (empty for in-memory data)."""
+    left_out: list[str] = field(default_factory=list)
+    """HDR views (stems) with no pose, left out of the fit (e.g. SfM did not register them)."""
 
     def split(self, holdout_every: int) -> tuple[list[int], list[int]]:
         """Training and held-out view indices (every ``holdout_every``-th held out)."""
@@ -64,8 +66,13 @@ def box_downscale(image: np.ndarray, factor: int) -> np.ndarray:
         axis=(1, 3)).astype(np.float32)
 
 
-def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, Path]]:
-    """Pair each posed camera with its EXR by stem; InputError on any disagreement."""
+def match_views(hdr_dir: Path, model: ColmapModel, left_out: list[str] | None = None
+                ) -> list[tuple[PinholeCamera, Path]]:
+    """Pair each posed camera with its EXR by stem; InputError on any disagreement.
+
+    With a ``left_out`` list, views without a pose (photos SfM could not
+    register) are named in it and skipped instead of failing the fit.
+    """
     exrs = {p.stem: p for p in hdr_view_paths(hdr_dir)}
     posed = {Path(c.name).stem: c for c in model.cameras}
     missing = sorted(set(posed) - set(exrs))
@@ -74,7 +81,9 @@ def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, 
         raise InputError(f"{len(missing)} posed image(s) have no HDR view: "
                          f"{', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
                          f"(expected <photo stem>.exr)", hdr_dir)
-    if unposed:
+    if unposed and left_out is not None and len(unposed) < len(exrs):
+        left_out.extend(unposed)
+    elif unposed:
         raise InputError(f"{len(unposed)} HDR view(s) have no pose: "
                          f"{', '.join(unposed[:5])}{' ...' if len(unposed) > 5 else ''}",
                          hdr_dir)
@@ -138,7 +147,8 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
     """Read poses and HDR views, check they agree and overlap, downscale."""
     hdr_dir = Path(hdr_dir)
     model = read_poses(poses)
-    pairs = match_views(hdr_dir, model)
+    left_out: list[str] = []
+    pairs = match_views(hdr_dir, model, left_out)
     check_overlap([c for c, _ in pairs], model.points)
     names, cams, images, paths = [], [], [], []
     space, attrs = "", {}
@@ -152,4 +162,4 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
         cams.append(scale_camera(cam, downscale))
         images.append(box_downscale(np.maximum(img.pixels, 0.0), downscale))
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
-                   attributes=attrs, downscale=downscale, paths=paths)
+                   attributes=attrs, downscale=downscale, paths=paths, left_out=left_out)
