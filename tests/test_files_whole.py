@@ -87,6 +87,8 @@ def test_orientation_still_applied(tmp_path):
     ["run", "{ply}", "-o", "{ply}", "--to", "hdri"],
     ["run", "{ply}", "-o", "{tmp}/sub/x", "--to", "hdri"],
     ["poses", "--from", "{tmp}/model", "-o", "{ply}"],
+    ["hdr", "{tmp}/model", "-o", "{ply}", "--method", "linear"],
+    ["fit", "{tmp}/model", "--poses", "{tmp}/model", "-o", "/sys/gaslight-test.ply"],
 ])
 def test_unwritable_outputs_are_bad_input_with_one_line(argv, tmp_path, capsys):
     ply = shell_ply(tmp_path / "s.ply")
