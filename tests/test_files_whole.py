@@ -156,3 +156,15 @@ def test_run_rejects_an_unknown_usd_form(tmp_path, capsys):
         main(["run", str(ply), "-o", str(tmp_path / "run"), "--as", "instancr"])
     assert exit_.value.code == EXIT_USAGE
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("argv", [["run", "{ply}", "-o", "{tmp}/run", "--budget", "0"],
+                                  ["fit", "{tmp}", "--poses", "{tmp}", "-o", "{tmp}/f.ply",
+                                   "--iterations", "-3"]])
+def test_counts_are_checked_before_any_work(argv, tmp_path, capsys):
+    ply = shell_ply(tmp_path / "s.ply")
+    with pytest.raises(SystemExit) as exit_:
+        main([a.format(ply=ply, tmp=tmp_path) for a in argv])
+    assert exit_.value.code == EXIT_USAGE
+    assert "expected a whole number >= 1" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.ply"]

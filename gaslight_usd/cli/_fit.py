@@ -9,6 +9,7 @@ from ..chain import ChainRun
 from ..kinds import Artifact, Kind
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
+from ._points import positive_int
 
 # The names of gaslight_usd.fit.PRESETS, kept here so --help does not import torch.
 PRESET_NAMES = ("fast", "balanced", "best")
@@ -46,8 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="3DGS PLY to write")
     p.add_argument("--preset", choices=PRESET_NAMES, default="fast",
                    help="fitting effort: fast (default), balanced or best (see above)")
-    p.add_argument("--budget", type=int, metavar="N", help="most splats to keep")
-    p.add_argument("--iterations", type=int, metavar="N", help="optimisation steps")
+    p.add_argument("--budget", type=positive_int, metavar="N", help="most splats to keep")
+    p.add_argument("--iterations", type=positive_int, metavar="N", help="optimisation steps")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
                    help="cpu (default; compiled kernels, deterministic for a seed) or cuda "
                         "(the torch renderer on a GPU torch can see)")

@@ -42,3 +42,14 @@ def attach_point_values(argv: list[str]) -> list[str]:
         out.append(token)
         i += 1
     return out
+
+
+def positive_int(text: str) -> int:
+    """A whole number >= 1 (an argparse ``type`` for counts such as --budget)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return value

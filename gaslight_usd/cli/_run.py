@@ -13,7 +13,7 @@ from ..pipeline import DEFAULT_TARGETS, Job, run_job, step_options
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from
 from ._export import _forms
-from ._points import parse_point
+from ._points import parse_point, positive_int
 
 HELP = "the whole chain: photos -> HDR views -> poses -> splats -> USD/EXR/PLY"
 DESCRIPTION = """\
@@ -65,7 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--predictor", help="exposure predictor for --method recursive")
     p.add_argument("--preset", choices=["fast", "balanced", "best"], default="fast",
                    help="fitting effort (default: fast)")
-    p.add_argument("--budget", type=int, metavar="N", help="maximum splat count")
+    p.add_argument("--budget", type=positive_int, metavar="N", help="maximum splat count")
     p.add_argument("--refine-poses", action="store_true",
                    help="optimise small corrections to the training views' poses while "
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
