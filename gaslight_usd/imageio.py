@@ -154,8 +154,7 @@ def read_image(
     )
 
 
-def read_pixels(path: str | Path, pixel_type: Any = None,
-                subimage: int = 0) -> tuple[oiio.ImageSpec, np.ndarray]:
+def read_pixels(path: str | Path, pixel_type: Any = None) -> tuple[oiio.ImageSpec, np.ndarray]:
     """The file's spec and all its pixels ``(H, W, C)``, read whole or not at all.
 
     Every read checks OpenImageIO's error state after decoding: a truncated or
@@ -173,8 +172,6 @@ def read_pixels(path: str | Path, pixel_type: Any = None,
         reason = oiio.geterror().strip() or "unknown format"
         raise InputError(f"cannot read image: {_one_line(reason)}", path)
     try:
-        if subimage and not inp.seek_subimage(subimage, 0):
-            raise InputError(f"has no subimage {subimage}", path)
         spec = oiio.ImageSpec(inp.spec())
         pixels = inp.read_image(oiio.FLOAT if pixel_type is None else pixel_type)
         if pixels is None or inp.has_error:

@@ -33,7 +33,7 @@ import numpy as np
 from . import panorama
 from .colmap import ColmapCamera, ColmapModel, read_model, write_model
 from .errors import GaslightError, InputError
-from .imageio import LDR_EXTENSIONS, list_images, read_header
+from .imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
 from .progress import Progress
 
 log = logging.getLogger(__name__)
@@ -116,7 +116,8 @@ def _stage_photos(photos: list[Path], work: Path, opts: SfmOptions
     import OpenImageIO as oiio
     names, owners, sizes = [], {}, {}
     for path in photos:
-        spec = read_header(path)
+        # Decoded here (not only by COLMAP) so a truncated photo fails, named.
+        spec, pixels = read_pixels(path, oiio.UINT8)
         sizes[path.name] = (spec.width, spec.height)
         pano = opts.panorama == "on" or (
             opts.panorama == "auto" and panorama.is_latlong(spec.width, spec.height))
@@ -125,10 +126,6 @@ def _stage_photos(photos: list[Path], work: Path, opts: SfmOptions
             names.append(path.name)
             owners[path.name] = [path.name]
             continue
-        buf = oiio.ImageBuf(str(path))
-        pixels = buf.get_pixels(oiio.UINT8)
-        if pixels is None:
-            raise InputError(f"cannot decode pixels: {buf.geterror()}", path)
         faces = panorama.cube_faces(pixels[..., :3], size=max(spec.width // 4, 64))
         owners[path.name] = []
         for face, img in faces.items():

@@ -65,6 +65,16 @@ def test_truncated_jpeg_stops_hdr_and_writes_nothing(photo_folder, tmp_path, cap
     assert not out.exists()
 
 
+def test_truncated_jpeg_stops_poses_naming_it(photo_folder, tmp_path, capsys):
+    cut = truncated_copy(photo_folder / "shot_2.jpg", tmp_path / "cut.jpg", keep=0.4)
+    shutil.move(cut, photo_folder / "shot_2.jpg")
+    out = tmp_path / "sparse"
+    assert main(["poses", str(photo_folder), "-o", str(out), "-q"]) == EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert "shot_2.jpg: truncated or corrupt image" in err
+    assert not out.exists()
+
+
 def test_whole_jpeg_still_reads_with_its_pixels(tmp_path):
     pixels = np.zeros((16, 24, 3), np.uint8)
     pixels[:, 12:] = 200
