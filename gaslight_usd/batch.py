@@ -69,13 +69,22 @@ def load_manifest(path: str | Path, out_dir: str | Path) -> list[tuple[str, Job]
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc}", path) from exc
-    problem = first_problem(data, bundled_schema("manifest.schema.json"))
-    if problem:
-        raise InputError(f"manifest: {problem}", path)
     scenes = data.get("scenes") if isinstance(data, dict) else None
     if not isinstance(scenes, list) or not scenes:
         raise InputError("manifest needs a non-empty 'scenes' list", path)
-    defaults = data.get("defaults", {})
+    # The checks below name the common mistakes in their own words; the schema then
+    # finds the rest (unknown keys such as "opitons", wrong types) before any work.
+    problem = first_problem(data, bundled_schema("manifest.schema.json"))
+    try:
+        jobs = _jobs(scenes, data.get("defaults", {}), path, Path(out_dir))
+    except (TypeError, AttributeError, ValueError) as exc:  # a wrong type in the manifest
+        raise InputError(f"manifest: {problem or exc}", path) from None
+    if problem:
+        raise InputError(f"manifest: {problem}", path)
+    return jobs
+
+
+def _jobs(scenes: list, defaults: dict, path: Path, out_dir: Path) -> list[tuple[str, Job]]:
     jobs: list[tuple[str, Job]] = []
     seen: set[str] = set()
     for i, scene in enumerate(scenes):
@@ -98,7 +107,7 @@ def load_manifest(path: str | Path, out_dir: str | Path) -> list[tuple[str, Job]
             raise InputError(f"{where} ({name}): missing input {missing[0]}", path)
         jobs.append((name, Job(
             inputs=inputs,
-            out_dir=Path(out_dir) / name,
+            out_dir=out_dir / name,
             targets=tuple(TARGET_NAMES[t] for t in targets),
             choose=dict(merged.get("choose", {})),
             options={k: dict(v) for k, v in merged.get("options", {}).items()},

@@ -65,3 +65,13 @@ def test_a_typo_stops_the_batch_before_any_work(tmp_path, capsys):
     assert main(["batch", str(manifest), "-o", str(tmp_path / "out")]) == EXIT_BAD_INPUT
     assert "did you mean 'options'?" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("scene", [{"inputs": ["photos"], "options": "fast"},
+                                   {"inputs": ["photos"], "choose": ["uplift.linear"]}])
+def test_a_wrong_type_is_named_not_an_internal_error(tmp_path, scene):
+    (tmp_path / "photos").mkdir()
+    manifest = tmp_path / "m.json"
+    manifest.write_text(json.dumps({"scenes": [{"name": "a", **scene}]}))
+    with pytest.raises(InputError, match=r"manifest: scenes\[0\]\.\w+: expected object"):
+        load_manifest(manifest, tmp_path / "out")
