@@ -10,12 +10,15 @@ from ..inspect import describe, format_facts
 from ._common import add_common, emit
 from ._preview import add_preview, check_preview, write_preview_for
 
-HELP = "print what an EXR/HDR image, 3DGS PLY or USD stage holds"
+HELP = "print what an EXR/HDR image, 3DGS PLY or USD stage holds (--preview: a PNG)"
 DESCRIPTION = """\
-Print what a file holds: for images the size, channels, colour space, value
-range and dynamic range in stops; for 3DGS PLYs the splat count, SH degree,
+Print what a file holds: for images (EXR, HDR, JPEG, PNG, TIFF, and the .tx
+textures 'hdri --tx' writes) the size, channels, colour space, value range,
+dynamic range in stops and envmap (latlong or cube); a truncated or corrupt
+image is an error (exit 3). For 3DGS PLYs the splat count, SH degree,
 bounds and brightest colour; for USD stages the up axis, metersPerUnit, prims
-by type, ParticleField splat counts and variant sets.
+by type, ParticleField splat counts and variant sets. --preview writes the
+image(s) as a PNG through an OCIO display/view transform.
 
 examples:
   gaslight2usd info out/hdr/view_00.exr
