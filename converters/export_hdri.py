@@ -15,6 +15,7 @@ from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import InputError
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import read_ply
+from gaslight_usd.probe_check import outside_warning
 from gaslight_usd.registry import Converter
 
 
@@ -45,7 +46,12 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
     out_space = o.get("output_space")
     if out_space:
         out_space = colour.resolve_space(out_space, s.ocio_config)
-    written = []
+    written, warnings = [], []
+    for pos in points if o.get("at") else []:
+        warning = outside_warning(pos, scene.positions)
+        if warning:
+            warnings.append(warning)
+            ctx.progress.message(f"warning: {warning}")
     for i, (pos, path) in enumerate(zip(points, paths, strict=True), start=1):
         files = render_probe(scene, pos, path, width=int(o.get("size") or DEFAULT_WIDTH),
                              cube=bool(o.get("cube")), faces=bool(o.get("faces")),
@@ -55,7 +61,8 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
         written.append({"position": list(pos), "files": [str(p) for p in files.all()]})
         ctx.progress.update(i, len(points), probe=str(path))
     return StageResult(
-        metadata={"probes": written, "colour_space": out_space or s.working_space},
+        metadata={"probes": written, "colour_space": out_space or s.working_space,
+                  "warnings": warnings},
         counts={"probes": len(points), "files": sum(len(w["files"]) for w in written)},
         metrics={},
     )

@@ -9,6 +9,7 @@ Options (``ctx.options``): ``as`` (list of particlefield, instancer, rig),
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from gaslight_usd.chain import StageContext, StageResult
@@ -16,6 +17,19 @@ from gaslight_usd.errors import GaslightError
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import read_ply
 from gaslight_usd.registry import Converter
+
+
+def relative_source(source: Path, folder: Path) -> str:
+    """``source`` as a path relative to ``folder`` (where the USD layers are written).
+
+    A relative path survives moving the output folder together with its inputs,
+    and says nothing of the machine's own folder layout; an absolute path is kept
+    only where no relative one exists.
+    """
+    try:
+        return os.path.relpath(Path(source).resolve(), Path(folder).resolve())
+    except ValueError:  # another drive
+        return str(Path(source).resolve())
 
 
 def export_usd_stage(ctx: StageContext) -> StageResult:
@@ -43,7 +57,8 @@ def export_usd_stage(ctx: StageContext) -> StageResult:
         seed=ctx.settings.seed,
     )
     ctx.progress.message(f"exporting {scene.count} splats as {', '.join(opts.variants)}")
-    report = export_usd(scene, out, opts, source=str(src))
+    report = export_usd(scene, out, opts, source=relative_source(src, out.parent),
+                        progress=ctx.progress)
     files = [str(p) for p in report.files]
     metrics = dict(report.metrics)
     if report.errors:

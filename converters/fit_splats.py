@@ -2,7 +2,9 @@
 
 Options (step "fit"): ``preset`` (fast|balanced|best), ``budget`` (most
 splats), ``iterations``, ``seed`` (default: the run's), ``device``, ``resume``
-(continue from the checkpoint beside the output), ``checkpoint`` (its path),
+(continue from the checkpoint beside the output; default: whether the run
+resumes, so ``run`` and ``batch`` pick up a killed fit where its checkpoint
+left it; ``run --fresh`` starts over), ``checkpoint`` (its path),
 ``refine_poses`` (optimise the training views' poses too; the refined poses
 are written beside the output as a COLMAP text model, see
 :func:`refined_poses_path`).
@@ -52,9 +54,12 @@ def fit(ctx: StageContext) -> StageResult:
     seed = int(opts.get("seed") if opts.get("seed") is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
     data = load_fit_data(hdr_dir, poses, downscale=cfg.downscale)
+    if data.left_out:
+        ctx.progress.message(f"warning: {len(data.left_out)} HDR view(s) have no pose and are "
+                             f"left out of the fit: {', '.join(data.left_out)}")
     ckpt = Path(opts.get("checkpoint") or checkpoint_path(ctx.output))
     result = fit_splats(data, cfg, seed=seed, progress=ctx.progress, checkpoint=ckpt,
-                        resume=bool(opts.get("resume")),
+                        resume=bool(opts.get("resume", ctx.resume)),
                         device=opts.get("device") or ctx.settings.device)
     attrs = data.attributes
     metadata = {
@@ -68,11 +73,15 @@ def fit(ctx: StageContext) -> StageResult:
             "method": "fit.splats (3DGS-style fit on linear HDR views)",
             "hdr_views": str(hdr_dir), "poses": str(poses), "views": data.names,
             "hdr_method": attrs.get("gaslight:method"),
+            "left_out_views": data.left_out,
             "preset": name, "seed": seed, "config": cfg.as_dict(),
         },
         "fit_metrics": result.metrics,
     }
     result.scene.metadata = metadata
+    m = result.metrics
+    ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
+                         f"{m['backdrop_splats']} backdrop splats added after the last step")
     write_ply(ctx.output, result.scene)
     extra = {}
     if cfg.refine_poses:
@@ -87,7 +96,7 @@ def fit(ctx: StageContext) -> StageResult:
     return StageResult(
         metadata={"colour_space": data.colour_space, "preset": name,
                   "exposure_scale": metadata["exposure_scale"], "frame": data.model.frame,
-                  "history": result.history, **extra},
+                  "history": result.history, "left_out_views": data.left_out, **extra},
         counts={"splats": m["splats"], "views": len(data.names),
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",

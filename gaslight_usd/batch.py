@@ -9,7 +9,9 @@ A manifest (JSON, schema in ``schemas/manifest.schema.json``)::
                 {"name": "stage_b", "inputs": ["b/photos", "b/sparse"],
                  "options": {"fit": {"preset": "balanced"}}}]}
 
-Relative paths are relative to the manifest. Each scene runs into
+The manifest is checked against that schema before any work (an unknown key
+such as ``"opitons"`` is an error naming it). Relative paths are relative to
+the manifest. Each scene runs into
 ``OUT/<name>/`` with its own ``report.json``; the batch writes
 ``OUT/batch-report.json``. Scenes are independent and resumable: a re-run skips
 finished stages, so a failed batch is simply run again.
@@ -28,7 +30,9 @@ from typing import Any
 
 from .atomic import write_text
 from .errors import GaslightError, InputError
+from .jsoncheck import bundled_schema, first_problem
 from .kinds import Kind
+from .outputs import check_output
 from .pipeline import Job, run_job
 from .progress import Progress
 
@@ -68,7 +72,19 @@ def load_manifest(path: str | Path, out_dir: str | Path) -> list[tuple[str, Job]
     scenes = data.get("scenes") if isinstance(data, dict) else None
     if not isinstance(scenes, list) or not scenes:
         raise InputError("manifest needs a non-empty 'scenes' list", path)
-    defaults = data.get("defaults", {})
+    # The checks below name the common mistakes in their own words; the schema then
+    # finds the rest (unknown keys such as "opitons", wrong types) before any work.
+    problem = first_problem(data, bundled_schema("manifest.schema.json"))
+    try:
+        jobs = _jobs(scenes, data.get("defaults", {}), path, Path(out_dir))
+    except (TypeError, AttributeError, ValueError) as exc:  # a wrong type in the manifest
+        raise InputError(f"manifest: {problem or exc}", path) from None
+    if problem:
+        raise InputError(f"manifest: {problem}", path)
+    return jobs
+
+
+def _jobs(scenes: list, defaults: dict, path: Path, out_dir: Path) -> list[tuple[str, Job]]:
     jobs: list[tuple[str, Job]] = []
     seen: set[str] = set()
     for i, scene in enumerate(scenes):
@@ -91,7 +107,7 @@ def load_manifest(path: str | Path, out_dir: str | Path) -> list[tuple[str, Job]
             raise InputError(f"{where} ({name}): missing input {missing[0]}", path)
         jobs.append((name, Job(
             inputs=inputs,
-            out_dir=Path(out_dir) / name,
+            out_dir=out_dir / name,
             targets=tuple(TARGET_NAMES[t] for t in targets),
             choose=dict(merged.get("choose", {})),
             options={k: dict(v) for k, v in merged.get("options", {}).items()},
@@ -117,7 +133,7 @@ def _run_one(name: str, job: Job, quiet: bool) -> SceneOutcome:
 def run_batch(jobs: list[tuple[str, Job]], out_dir: str | Path, workers: int = 1,
               dask_address: str | None = None, quiet: bool = False) -> dict[str, Any]:
     """Run every scene; never stops at the first failure. Returns the batch report."""
-    out_dir = Path(out_dir)
+    out_dir = check_output(Path(out_dir), folder=True)
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     if dask_address:

@@ -6,7 +6,9 @@ Resuming: each finished stage is recorded in ``<out>/.gaslight-state.json``
 with a fingerprint of its converter, options and inputs (paths, sizes,
 modification times). A later run with the same fingerprint and the output
 still present skips the stage. Outputs are written atomically by converters,
-so a killed stage leaves nothing that looks finished.
+so a killed stage leaves nothing that looks finished. A stage that was started
+with the same fingerprint and killed is told so (``StageContext.resume``): the
+fit then continues from its checkpoint instead of step 1.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from . import colour
 from .atomic import write_text
 from .errors import InputError, NotBuiltYet, UsageError
 from .kinds import Artifact, Kind
+from .outputs import check_output
 from .progress import Progress
 from .provenance import tool_version, versions
 from .registry import Converter, Registry, default_registry
@@ -65,6 +68,9 @@ class StageContext:
     settings: Settings
     options: dict[str, Any]
     progress: Progress
+    resume: bool = False
+    """Whether the run resumes: a stage may continue its own interrupted work
+    (the fit from its checkpoint) instead of starting over."""
 
     def input(self, kind: Kind) -> Artifact:
         return self.inputs[kind]
@@ -143,6 +149,11 @@ def plan(available: Iterable[Kind], target: Kind, registry: Registry,
     return result
 
 
+def _is_folder_output(kind: Kind, path: Path) -> bool:
+    """Whether an output of ``kind`` at ``path`` is a folder (EXR views, a COLMAP model)."""
+    return kind in (Kind.HDR_VIEWS, Kind.POSES, Kind.HDRI) and not path.suffix
+
+
 def _fingerprint_path(path: Path) -> list:
     if not path.exists():
         return [str(path), None]
@@ -217,6 +228,9 @@ class ChainRun:
                              self.registry, choose):
                 if conv not in steps:
                     steps.append(conv)
+        check_output(self.out_dir, folder=True)
+        for kind, path in (outputs or {}).items():
+            check_output(path, folder=_is_folder_output(kind, Path(path)))
         created_out = not self.out_dir.exists()
         self.out_dir.mkdir(parents=True, exist_ok=True)
         state = self._load_state() if resume else {}
@@ -237,8 +251,15 @@ class ChainRun:
                 artifacts[conv.output] = Artifact(conv.output, out_path, record.metadata)
                 continue
             self.progress.message(f"[{label}] {conv.name}: {conv.description}")
+            # A stage started before with the same fingerprint and killed may continue
+            # its own work (the fit from its checkpoint); with other inputs it starts over.
+            started = state.setdefault("started", {})
+            continues = resume and started.get(conv.step) == key
+            started[conv.step] = key
+            self._save_state(state)
             ctx = StageContext(inputs=inputs, output=out_path, settings=self.settings,
-                               options=stage_options, progress=self.progress.child(label))
+                               options=stage_options, progress=self.progress.child(label),
+                               resume=continues)
             t0 = time.perf_counter()
             record = StageRecord(
                 name=conv.step, converter=conv.name,

@@ -121,20 +121,10 @@ def read_image(
     file for a missing or unreadable file and for NaN or infinite pixels.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path)
-    if path.is_dir():
-        raise InputError("is a folder, expected an image file", path)
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error or not buf.initialized:
-        raise InputError(f"cannot read image: {buf.geterror().strip() or 'unknown format'}", path)
-    spec = buf.spec()
+    spec, pixels = read_pixels(path)
     orientation = int(spec.get_int_attribute("Orientation", 1))
     if orientation != 1:
-        buf = oiio.ImageBufAlgo.reorient(buf)
-    pixels = buf.get_pixels(oiio.FLOAT)
-    if pixels is None or buf.has_error:
-        raise InputError(f"cannot decode pixels: {buf.geterror().strip()}", path)
+        pixels = _reoriented(pixels, orientation)
     pixels = np.asarray(pixels, dtype=np.float32)
     if pixels.ndim == 2:
         pixels = pixels[..., None]
@@ -164,6 +154,52 @@ def read_image(
     )
 
 
+def read_pixels(path: str | Path, pixel_type: Any = None) -> tuple[oiio.ImageSpec, np.ndarray]:
+    """The file's spec and all its pixels ``(H, W, C)``, read whole or not at all.
+
+    Every read checks OpenImageIO's error state after decoding: a truncated or
+    corrupt file (an EXR with missing chunks, a JPEG that ends early) would
+    otherwise come back as an image padded with black or grey, silently. Such a
+    file raises :class:`InputError` naming it. ``pixel_type`` defaults to float.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file", path)
+    if path.is_dir():
+        raise InputError("is a folder, expected an image file", path)
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        reason = oiio.geterror().strip() or "unknown format"
+        raise InputError(f"cannot read image: {_one_line(reason)}", path)
+    try:
+        spec = oiio.ImageSpec(inp.spec())
+        pixels = inp.read_image(oiio.FLOAT if pixel_type is None else pixel_type)
+        if pixels is None or inp.has_error:
+            reason = inp.geterror().strip() or oiio.geterror().strip() or "no pixels"
+            raise InputError(f"truncated or corrupt image: {_one_line(reason)}", path)
+    finally:
+        inp.close()
+    pixels = np.asarray(pixels)
+    if pixels.ndim == 2:
+        pixels = pixels[..., None]
+    return spec, pixels
+
+
+def _one_line(text: str) -> str:
+    """OpenImageIO repeats its message once per failed chunk: keep each line once."""
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return "; ".join(dict.fromkeys(lines))
+
+
+def _reoriented(pixels: np.ndarray, orientation: int) -> np.ndarray:
+    """Pixels turned upright as the EXIF ``Orientation`` tag asks."""
+    h, w, c = pixels.shape
+    buf = oiio.ImageBuf(oiio.ImageSpec(w, h, c, oiio.FLOAT))
+    buf.set_pixels(oiio.ROI(0, w, 0, h, 0, 1, 0, c), np.ascontiguousarray(pixels, np.float32))
+    buf.specmod().attribute("Orientation", int(orientation))
+    return np.asarray(oiio.ImageBufAlgo.reorient(buf).get_pixels(oiio.FLOAT), np.float32)
+
+
 def read_header(path: str | Path) -> oiio.ImageSpec:
     """The image's spec (size, channels, attributes) without reading pixels."""
     path = Path(path)
@@ -171,7 +207,8 @@ def read_header(path: str | Path) -> oiio.ImageSpec:
         raise InputError("no such file", path)
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
-        raise InputError(f"cannot read image: {oiio.geterror().strip()}", path)
+        reason = oiio.geterror().strip() or "unknown format"
+        raise InputError(f"cannot read image: {_one_line(reason)}", path)
     try:
         return oiio.ImageSpec(inp.spec())
     finally:

@@ -15,7 +15,11 @@ import numpy as np
 from .errors import InputError
 from .kinds import USD_EXTENSIONS
 
-IMAGE_INFO_EXTENSIONS = (".exr", ".hdr", ".jpg", ".jpeg", ".png", ".tif", ".tiff")
+IMAGE_INFO_EXTENSIONS = (".exr", ".hdr", ".jpg", ".jpeg", ".png", ".tif", ".tiff", ".tx")
+
+# OpenImageIO reads OpenEXR's ``envmap`` attribute (and a .tx's texture kind) as
+# ``textureformat``; info names it the way OpenEXR does.
+ENVMAP_NAMES = {"LatLong Environment": "latlong", "CubeFace Environment": "cube"}
 
 
 def dynamic_range_stops(luminance: np.ndarray) -> float:
@@ -31,13 +35,14 @@ def describe_image(path: Path) -> dict[str, Any]:
     import OpenImageIO as oiio
 
     from . import colour
-    from .imageio import read_header
+    from .imageio import read_pixels
 
-    spec = read_header(path)
-    buf = oiio.ImageBuf(str(path))
-    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), dtype=np.float32)
-    if pixels.ndim == 2:
-        pixels = pixels[..., None]
+    spec, pixels = read_pixels(path)
+    pixels = pixels.astype(np.float32, copy=False)
+    inp = oiio.ImageInput.open(str(path))
+    file_format = inp.format_name() if inp is not None else None
+    if inp is not None:
+        inp.close()
     finite = np.isfinite(pixels)
     rgb = np.where(finite, pixels, 0.0)[..., :3]
     if rgb.shape[-1] < 3:
@@ -54,14 +59,14 @@ def describe_image(path: Path) -> dict[str, Any]:
     return {
         "file": str(path),
         "type": "image",
-        "format": buf.file_format_name,
+        "format": file_format,
         "width": spec.width,
         "height": spec.height,
         "channels": list(spec.channelnames),
         "pixel_type": str(spec.format),
         "colour_space": tagged if isinstance(tagged, str) else None,
         "chromaticities": list(attrs["chromaticities"]) if "chromaticities" in attrs else None,
-        "envmap": attrs.get("envmap") or attrs.get("oiio:EnvMap"),
+        "envmap": envmap_kind(attrs),
         "min": [float(v) for v in rgb.reshape(-1, 3).min(axis=0)],
         "max": [float(v) for v in rgb.reshape(-1, 3).max(axis=0)],
         "peak_luminance": float(lum.max()),
@@ -73,6 +78,14 @@ def describe_image(path: Path) -> dict[str, Any]:
                                                            "Exif:ISOSpeedRatings")},
         "bytes": path.stat().st_size,
     }
+
+
+def envmap_kind(attrs: dict[str, Any]) -> str | None:
+    """``latlong`` or ``cube`` for an environment map, else None."""
+    raw = attrs.get("envmap") or attrs.get("textureformat")
+    if raw is None:
+        return None
+    return ENVMAP_NAMES.get(str(raw), str(raw))
 
 
 def describe_ply(path: Path) -> dict[str, Any]:
@@ -173,7 +186,8 @@ def describe(path: str | Path) -> dict[str, Any]:
         return describe_usd(path)
     if suffix in IMAGE_INFO_EXTENSIONS:
         return describe_image(path)
-    raise InputError("unknown file type; info reads EXR/HDR/JPEG/PNG/TIFF, PLY and USD", path)
+    raise InputError("unknown file type; info reads EXR/HDR/JPEG/PNG/TIFF/.tx, PLY "
+                     "and USD", path)
 
 
 def format_facts(facts: dict[str, Any]) -> str:

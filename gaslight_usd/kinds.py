@@ -66,6 +66,11 @@ class Artifact:
     path: Path
     metadata: dict[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # Pipeline code passes plain strings as often as Paths (the README does).
+        self.path = Path(self.path)
+        self.kind = Kind(self.kind)
+
 
 def _is_colmap_model(folder: Path) -> bool:
     return any((folder / f"cameras.{ext}").exists() for ext in ("txt", "bin"))

@@ -48,10 +48,41 @@ def artifacts_from_paths(paths: list[Path]) -> list[Artifact]:
 def run_job(job: Job, registry: Registry | None = None, progress: Progress | None = None,
             command: list[str] | None = None) -> dict[Kind, Artifact]:
     settings = Settings.resolved(**job.settings)
-    runner = ChainRun(job.out_dir, settings, registry or default_registry(),
-                      progress or Progress(), command)
-    return runner.run(artifacts_from_paths(job.inputs), job.targets, choose=job.choose,
-                      options=job.options, resume=job.resume)
+    progress = progress or Progress()
+    runner = ChainRun(job.out_dir, settings, registry or default_registry(), progress, command)
+    artifacts = runner.run(artifacts_from_paths(job.inputs), job.targets, choose=job.choose,
+                           options=job.options, resume=job.resume)
+    write_run_pictures(job.out_dir, artifacts, settings, progress)
+    return artifacts
+
+
+def write_run_pictures(out_dir: Path, artifacts: Mapping, settings: Settings,
+                       progress: Progress) -> Path | None:
+    """``OUT/contact-sheet.png``: the run's photos, HDR views and HDRIs to look at.
+
+    A failure to draw it is a warning, not a failed run.
+    """
+    from .errors import GaslightError
+    from .imageio import LDR_EXTENSIONS, list_images
+    from .preview import latlong_hdris, run_contact_sheet
+    from .views import hdr_view_paths
+
+    def files(kind: Kind, lister) -> list[Path]:
+        art = artifacts.get(kind)
+        if art is None or not Path(art.path).is_dir():
+            return []
+        try:
+            return lister(Path(art.path))
+        except GaslightError:
+            return []
+
+    try:
+        return run_contact_sheet(
+            out_dir, files(Kind.LDR_VIEWS, lambda p: list_images(p, LDR_EXTENSIONS)),
+            files(Kind.HDR_VIEWS, hdr_view_paths), files(Kind.HDRI, latlong_hdris), settings)
+    except (GaslightError, OSError) as exc:
+        progress.message(f"warning: no contact sheet: {exc}")
+        return None
 
 
 def step_options(pairs: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:

@@ -33,7 +33,7 @@ import numpy as np
 from . import panorama
 from .colmap import ColmapCamera, ColmapModel, read_model, write_model
 from .errors import GaslightError, InputError
-from .imageio import LDR_EXTENSIONS, list_images, read_header
+from .imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
 from .progress import Progress
 
 log = logging.getLogger(__name__)
@@ -116,7 +116,8 @@ def _stage_photos(photos: list[Path], work: Path, opts: SfmOptions
     import OpenImageIO as oiio
     names, owners, sizes = [], {}, {}
     for path in photos:
-        spec = read_header(path)
+        # Decoded here (not only by COLMAP) so a truncated photo fails, named.
+        spec, pixels = read_pixels(path, oiio.UINT8)
         sizes[path.name] = (spec.width, spec.height)
         pano = opts.panorama == "on" or (
             opts.panorama == "auto" and panorama.is_latlong(spec.width, spec.height))
@@ -125,10 +126,6 @@ def _stage_photos(photos: list[Path], work: Path, opts: SfmOptions
             names.append(path.name)
             owners[path.name] = [path.name]
             continue
-        buf = oiio.ImageBuf(str(path))
-        pixels = buf.get_pixels(oiio.UINT8)
-        if pixels is None:
-            raise InputError(f"cannot decode pixels: {buf.geterror()}", path)
         faces = panorama.cube_faces(pixels[..., :3], size=max(spec.width // 4, 64))
         owners[path.name] = []
         for face, img in faces.items():
@@ -222,8 +219,9 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             done = [0]
 
             def next_image() -> None:
+                # Called once per image registered after the initial pair (two images).
                 done[0] += 1
-                progress.update(done[0] + 1, len(names), registered=done[0] + 1)
+                progress.update(min(done[0] + 2, len(names)), len(names))
 
             recs = pycolmap.incremental_mapping(db_path, images, work / "sparse",
                                                 options=mapping,
@@ -240,6 +238,8 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             model = read_model(model_dir)
             model.source = None
         registered_images = set(model.names)
+        progress.message(f"registered {len(registered_images)} of {len(names)} images "
+                         f"({len(model.points)} points)")
         registered = [p for p, imgs in owners.items() if set(imgs) & registered_images]
         unregistered = {p: _photo_reason(imgs, reasons) for p, imgs in owners.items()
                         if not set(imgs) & registered_images}

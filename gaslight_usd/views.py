@@ -9,6 +9,7 @@ every output (``gaslight:exposure_scale`` and ``gaslight:reference_ev``).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,8 @@ import numpy as np
 
 from . import colour
 from .imageio import IMAGE_EXTENSIONS, LDR_EXTENSIONS, Image, list_images, read_image, write_exr
+
+logger = logging.getLogger(__name__)
 
 CLIP_LEVEL = 0.99
 """An encoded value at or above this (of full scale) counts as clipped."""
@@ -69,6 +72,8 @@ def load_views(paths: list[Path] | Path, input_space: str, working_space: str,
                            for p in paths]
     evs = [im.exposure.ev if im.exposure.known else None for im in images]
     known = [e for e in evs if e is not None]
+    warn_missing_exposure([im.path.name for im, ev in zip(images, evs, strict=True)
+                           if ev is None], len(images))
     reference = float(np.median(known)) if known else 0.0
     views = []
     for im, ev in zip(images, evs, strict=True):
@@ -78,6 +83,20 @@ def load_views(paths: list[Path] | Path, input_space: str, working_space: str,
                           exposure_ratio=ratio, ev=ev,
                           metadata={"reference_ev": reference, "source_space": im.colour_space}))
     return views
+
+
+def warn_missing_exposure(names: list[str], total: int) -> None:
+    """Say which photos have no EXIF exposure: their relative radiance is a guess.
+
+    Such a photo is taken as exposed like the set's median; a bracket or an
+    exposure change between shots then shows up as a wrong brightness, silently.
+    """
+    if not names:
+        return
+    listed = ", ".join(names[:5]) + (" ..." if len(names) > 5 else "")
+    what = "no photo carries" if len(names) == total else f"{len(names)} of {total} photos carry no"
+    logger.warning("%s EXIF exposure (ExposureTime): %s; taken as exposed like the "
+                   "set's median, so their relative radiance may be off", what, listed)
 
 
 def hdr_attributes(view: View, method: str, extra: dict[str, Any] | None = None) -> dict:

@@ -10,7 +10,10 @@ from ..chain import Settings
 from ..progress import Progress
 
 
-def add_common(parser: argparse.ArgumentParser, colour: bool = False) -> None:
+def add_common(parser: argparse.ArgumentParser, colour: bool = False,
+               photos: bool = True) -> None:
+    """--json/-v/-q; with ``colour`` the OCIO options (--input-space only for
+    commands that read photos: ``photos``)."""
     g = parser.add_argument_group("common options")
     g.add_argument("--json", action="store_true",
                    help="print the result as JSON on stdout (progress stays on stderr)")
@@ -22,9 +25,10 @@ def add_common(parser: argparse.ArgumentParser, colour: bool = False) -> None:
         c.add_argument("--ocio-config", metavar="URI",
                        help="OCIO config file or URI (default: $OCIO, else "
                             "ocio://cg-config-latest)")
-        c.add_argument("--input-space", metavar="NAME",
-                       help="colour space of the photos (default: "
-                            "'sRGB Encoded Rec.709 (sRGB)')")
+        if photos:
+            c.add_argument("--input-space", metavar="NAME",
+                           help="colour space of the photos (default: "
+                                "'sRGB Encoded Rec.709 (sRGB)')")
         c.add_argument("--working-space", metavar="NAME",
                        help="scene-linear working and output space (default: ACEScg)")
 

@@ -8,10 +8,13 @@ from pathlib import Path
 from ..chain import StageContext
 from ..errors import InputError
 from ..kinds import Artifact, Kind
+from ..outputs import check_output
 from ._common import add_common, emit, progress_from, settings_from
+from ._points import parse_point
 
 HELP = "write the splats as OpenUSD: ParticleField, emissive instancer, UsdLux rig"
 FORMS = ("particlefield", "instancer", "rig")
+USD_ROOT_SUFFIXES = (".usda", ".usd", ".usdc")
 DESCRIPTION = """\
 Write a 3DGS PLY (ours or any other tool's) as OpenUSD. The root layer
 (scene.usda) has a variant set 'lighting' on its default prim /Scene with one
@@ -48,16 +51,6 @@ def _forms(text: str) -> tuple[str, ...]:
     return forms
 
 
-def _point(text: str) -> tuple[float, float, float]:
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != 3:
-        raise argparse.ArgumentTypeError(f"expected X,Y,Z, got {text!r}")
-    return values  # type: ignore[return-value]
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("export", help=HELP, description=DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -82,14 +75,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rig-tolerance", type=float, default=0.05, metavar="REL",
                    help="irradiance error at the probe allowed for the rig, relative "
                         "to its largest irradiance (default 0.05)")
-    p.add_argument("--at", type=_point, metavar="X,Y,Z",
+    p.add_argument("--at", type=parse_point, metavar="X,Y,Z",
                    help="rig probe point (default: centre of the splats' bounds)")
     p.add_argument("--dome-size", type=int, default=1024, metavar="N",
                    help="dome lat-long width in pixels (default 1024)")
     p.add_argument("--display-ply", type=Path, metavar="PATH",
                    help="also write a display-referred (tone-mapped) PLY for viewers "
                         "that clip HDR; its exposure is in the header comments")
-    add_common(p, colour=True)
+    add_common(p, colour=True, photos=False)
     p.set_defaults(handler=run)
 
 
@@ -98,6 +91,9 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.splats.is_file():
         raise InputError("no such file", args.splats)
+    check_output(args.output, folder=args.output.suffix.lower() not in USD_ROOT_SUFFIXES)
+    if args.display_ply is not None:
+        check_output(args.display_ply, folder=False)
     settings = settings_from(args)
     options = {"as": list(args.forms), "half": args.half, "usdz": args.usdz,
                "emit_threshold": args.emit_threshold,

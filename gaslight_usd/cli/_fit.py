@@ -9,6 +9,7 @@ from ..chain import ChainRun
 from ..kinds import Artifact, Kind
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
+from ._points import positive_int
 
 # The names of gaslight_usd.fit.PRESETS, kept here so --help does not import torch.
 PRESET_NAMES = ("fast", "balanced", "best")
@@ -22,7 +23,7 @@ the held-out views improve, never past --budget; idle splats are pruned. The
 PLY carries the colour space, exposure scale, frame and provenance in its
 header, and the held-out error; report.json sits beside it.
 
-presets (on the 14-view 480x360 example, 2 CPU cores):
+presets (the bundled example has 24 views of 480x360):
   fast      views at 1/4 size, 300 steps, <= 12k splats, SH degree <= 1
   balanced  views at 1/2 size, 2500 steps, SH degree <= 2
   best      full size, 6000 steps, SH degree <= 3
@@ -44,9 +45,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="COLMAP model folder (or transforms.json) posing the views")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="SPLATS_PLY",
                    help="3DGS PLY to write")
-    p.add_argument("--preset", choices=PRESET_NAMES, default="fast")
-    p.add_argument("--budget", type=int, metavar="N", help="most splats to keep")
-    p.add_argument("--iterations", type=int, metavar="N", help="optimisation steps")
+    p.add_argument("--preset", choices=PRESET_NAMES, default="fast",
+                   help="fitting effort: fast (default), balanced or best (see above)")
+    p.add_argument("--budget", type=positive_int, metavar="N", help="most splats to keep")
+    p.add_argument("--iterations", type=positive_int, metavar="N", help="optimisation steps")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
                    help="cpu (default; compiled kernels, deterministic for a seed) or cuda "
                         "(the torch renderer on a GPU torch can see)")

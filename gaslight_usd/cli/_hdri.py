@@ -8,8 +8,10 @@ from pathlib import Path
 from ..chain import StageContext
 from ..errors import InputError
 from ..kinds import Artifact, Kind
+from ..outputs import check_output
 from ._common import add_common, emit, progress_from, settings_from
-from ._export import _point
+from ._points import parse_point
+from ._preview import add_preview, check_preview, write_preview_for
 
 HELP = "render lat-long / cube-map EXR HDRIs from the splats at probe points"
 DESCRIPTION = """\
@@ -34,6 +36,7 @@ map; NAME.tx the tiled mip-mapped texture (OpenImageIO maketx). With several
 examples:
   gaslight2usd hdri out/splats.ply --at 0,1.5,0 -o out/probe.exr --cube
   gaslight2usd hdri out/splats.ply --at 0,1,0 --at 2,1,0 -o probes/p.exr --size 1024
+  gaslight2usd hdri out/splats.ply --at -1.2,1.35,-0.58 -o probe.exr --preview probe.png
 """
 
 
@@ -41,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("hdri", help=HELP, description=DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("splats", type=Path, help="3DGS PLY (linear HDR colours)")
-    p.add_argument("--at", type=_point, action="append", metavar="X,Y,Z",
+    p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point in the splats' world frame (repeat for several; "
                         "default: centre of the splats' bounds)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PROBE.exr",
@@ -57,7 +60,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="OCIO colour space of the files (default: the working space)")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
                    help="where the panoramas are rendered: cpu (default) or cuda")
-    add_common(p, colour=True)
+    add_preview(p, "the lat-long HDRI(s)")
+    add_common(p, colour=True, photos=False)
     p.set_defaults(handler=run)
 
 
@@ -72,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--size must be an even number >= 8, got {args.size}")
     if args.output.suffix.lower() != ".exr":
         raise InputError("the output must be an .exr file name", args.output)
+    check_output(args.output, folder=False)
+    check_preview(args)
     settings = settings_from(args, device=args.device)
     options = {"at": args.at, "size": args.size, "cube": args.cube, "faces": args.faces,
                "tx": args.tx, "output_space": args.output_space}
@@ -82,5 +88,10 @@ def run(args: argparse.Namespace) -> int:
     probes = result.metadata["probes"]
     text = "\n".join(f"probe at {tuple(p['position'])}: " + ", ".join(p["files"])
                      for p in probes)
+    preview = write_preview_for(args, [Path(p["files"][0]) for p in probes],
+                                settings.working_space)
+    if preview is not None:
+        result.metadata["preview"] = str(preview)
+        text += f"\npreview: {preview}"
     emit(args, {**result.metadata, **result.counts}, text)
     return 0

@@ -117,9 +117,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _import(args: argparse.Namespace) -> int:
+    from ..outputs import check_output
     from ..poses import read_poses, write_poses
     from ..sfm import triangulate_known_poses
+
     t0 = time.perf_counter()
+    check_output(args.output, folder=args.output.suffix.lower() != ".json")
     model = read_poses(args.from_poses)
     triangulated = False
     if args.photos is not None and len(model.points) == 0:

@@ -12,6 +12,8 @@ from ..kinds import Kind, detect_kind
 from ..pipeline import DEFAULT_TARGETS, Job, run_job, step_options
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from
+from ._export import _forms
+from ._points import parse_point, positive_int
 
 HELP = "the whole chain: photos -> HDR views -> poses -> splats -> USD/EXR/PLY"
 DESCRIPTION = """\
@@ -21,7 +23,8 @@ model or transforms.json (poses), or a 3DGS PLY. What is missing is made; what
 you give is used as is.
 
 OUT holds: hdr/ (one EXR per photo), sparse/ (COLMAP model + frame.json),
-splats.ply, scene.usda (+ .usdc layers), hdri/ (lat-long and cube EXRs) and
+splats.ply, scene.usda (+ .usdc layers), hdri/ (lat-long EXRs; with --cube also
+cube maps), contact-sheet.png (the inputs, HDR views and HDRIs to look at) and
 report.json (stages, seconds, counts, metrics, versions). Re-running the same
 command skips the stages that finished with the same inputs and options.
 
@@ -48,7 +51,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("inputs", nargs="+", type=Path, metavar="INPUT",
                    help="photos folder, HDR EXR folder, COLMAP model / transforms.json, or PLY")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT",
+                   help="output folder (made if missing; a re-run resumes in it)")
     p.add_argument("--to", type=_targets, default=DEFAULT_TARGETS, metavar="LIST",
                    help="what to make: any of hdr,poses,splats,usd,hdri (default: "
                         "splats,usd,hdri)")
@@ -61,18 +65,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--predictor", help="exposure predictor for --method recursive")
     p.add_argument("--preset", choices=["fast", "balanced", "best"], default="fast",
                    help="fitting effort (default: fast)")
-    p.add_argument("--budget", type=int, metavar="N", help="maximum splat count")
+    p.add_argument("--budget", type=positive_int, metavar="N", help="maximum splat count")
     p.add_argument("--refine-poses", action="store_true",
                    help="optimise small corrections to the training views' poses while "
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
-    p.add_argument("--at", action="append", metavar="X,Y,Z",
+    p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: the centre of the splats)")
-    p.add_argument("--as", dest="export_as", metavar="LIST",
+    p.add_argument("--as", dest="export_as", type=_forms, metavar="LIST",
                    help="USD forms: particlefield,instancer,rig (default: all three)")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
                    help="where fitting and HDRI rendering run: cpu (default) or cuda")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--cube", action="store_true",
+                   help="also write each HDRI as an OpenEXR cube map (NAME.cube.exr)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="random seed of the fit (default 0; a run repeats exactly for a seed)")
     p.add_argument("--fresh", action="store_true",
                    help="ignore finished stages in OUT and redo everything")
     add_common(p, colour=True)
@@ -102,8 +109,8 @@ def run(args: argparse.Namespace) -> int:
             "uplift": {"predictor": args.predictor},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
                     "seed": args.seed, "refine_poses": args.refine_poses or None},
-            "export": {"as": args.export_as},
-            "hdri": {"at": args.at, "device": args.device},
+            "export": {"as": list(args.export_as) if args.export_as else None},
+            "hdri": {"at": args.at, "device": args.device, "cube": args.cube or None},
         }),
         settings={"ocio_config": args.ocio_config, "input_space": args.input_space,
                   "working_space": args.working_space, "device": args.device,
@@ -113,8 +120,14 @@ def run(args: argparse.Namespace) -> int:
     artifacts = run_job(job, registry, progress_from(args), command=["gaslight2usd", *sys.argv[1:]])
     report = json.loads((args.output / "report.json").read_text())
     lines = [f"{a.kind.value:10s} {a.path}" for a in artifacts.values()]
+    from ..preview import CONTACT_SHEET
+
+    sheet = args.output / CONTACT_SHEET
+    if sheet.exists():
+        lines.append(f"pictures   {sheet}")
     lines.append(f"report     {args.output / 'report.json'} "
                  f"({report['total_seconds']:.1f} s)")
     emit(args, {"outputs": {k.value: str(a.path) for k, a in artifacts.items()},
+                "pictures": str(sheet) if sheet.exists() else None,
                 "report": report}, "\n".join(lines))
     return 0

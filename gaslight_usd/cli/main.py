@@ -3,14 +3,26 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import logging
 import sys
 import traceback
 
-from ..errors import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_USAGE, GaslightError
+from ..errors import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_USAGE,
+    GaslightError,
+)
 from ..provenance import tool_version
 from ._pending import register_pending
+from ._points import attach_point_values
+
+# OS errors that mean "this path cannot be used as given" (exit 3, bad input).
+PATH_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOENT, errno.ENOTDIR,
+               errno.EISDIR, errno.EEXIST, errno.ENAMETOOLONG}
 
 # Subcommand -> module in this package; absent modules are "not built yet".
 SUBCOMMANDS = ["run", "hdr", "poses", "fit", "export", "hdri", "batch", "bench", "info"]
@@ -60,7 +72,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
+    argv = attach_point_values(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser(argv[0] if argv and argv[0] in SUBCOMMANDS else None)
     args = parser.parse_args(argv)
     if not getattr(args, "handler", None):
@@ -76,12 +88,23 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("gaslight2usd: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except Exception as exc:  # an internal error: one line unless -v
-        if getattr(args, "verbose", False):
-            traceback.print_exc()
-        print(f"gaslight2usd: internal error: {type(exc).__name__}: {exc} "
-              "(run with -v for the traceback)", file=sys.stderr)
-        return EXIT_FAILED
+    except OSError as exc:
+        if exc.filename is None:
+            return _internal_error(args, exc)
+        # A path the work could not write or read: the user's to fix, not a bug.
+        print(f"gaslight2usd: error: {exc.filename}: {exc.strerror or exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT if exc.errno in PATH_ERRNOS else EXIT_FAILED
+    except Exception as exc:
+        return _internal_error(args, exc)
+
+
+def _internal_error(args: argparse.Namespace, exc: BaseException) -> int:
+    """An internal error: one line unless -v."""
+    if getattr(args, "verbose", False):
+        traceback.print_exc()
+    print(f"gaslight2usd: internal error: {type(exc).__name__}: {exc} "
+          "(run with -v for the traceback)", file=sys.stderr)
+    return EXIT_FAILED
 
 
 if __name__ == "__main__":

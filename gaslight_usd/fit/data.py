@@ -50,6 +50,9 @@ class FitData:
         f = self.floors[index]
         return f if bool(np.any(f > 0)) else None
 
+    left_out: list[str] = field(default_factory=list)
+    """HDR views (stems) with no pose, left out of the fit (e.g. SfM did not register them)."""
+
     def split(self, holdout_every: int) -> tuple[list[int], list[int]]:
         """Training and held-out view indices (every ``holdout_every``-th held out)."""
         n = len(self.cameras)
@@ -90,8 +93,13 @@ def fit_floor(floor: np.ndarray, image: np.ndarray, weights: np.ndarray, factor:
     return np.where(share > 0, np.maximum(low, 1e-6), 0.0).astype(np.float32)
 
 
-def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, Path]]:
-    """Pair each posed camera with its EXR by stem; InputError on any disagreement."""
+def match_views(hdr_dir: Path, model: ColmapModel, left_out: list[str] | None = None
+                ) -> list[tuple[PinholeCamera, Path]]:
+    """Pair each posed camera with its EXR by stem; InputError on any disagreement.
+
+    With a ``left_out`` list, views without a pose (photos SfM could not
+    register) are named in it and skipped instead of failing the fit.
+    """
     exrs = {p.stem: p for p in hdr_view_paths(hdr_dir)}
     posed = {Path(c.name).stem: c for c in model.cameras}
     missing = sorted(set(posed) - set(exrs))
@@ -100,7 +108,9 @@ def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, 
         raise InputError(f"{len(missing)} posed image(s) have no HDR view: "
                          f"{', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
                          f"(expected <photo stem>.exr)", hdr_dir)
-    if unposed:
+    if unposed and left_out is not None and len(unposed) < len(exrs):
+        left_out.extend(unposed)
+    elif unposed:
         raise InputError(f"{len(unposed)} HDR view(s) have no pose: "
                          f"{', '.join(unposed[:5])}{' ...' if len(unposed) > 5 else ''}",
                          hdr_dir)
@@ -164,7 +174,8 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
     """Read poses and HDR views, check they agree and overlap, downscale."""
     hdr_dir = Path(hdr_dir)
     model = read_poses(poses)
-    pairs = match_views(hdr_dir, model)
+    left_out: list[str] = []
+    pairs = match_views(hdr_dir, model, left_out)
     check_overlap([c for c, _ in pairs], model.points)
     names, cams, images, paths, floors = [], [], [], [], []
     space, attrs = "", {}
@@ -182,4 +193,5 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
         floors.append(None if floor is None or not np.any(floor > 0) else fit_floor(
             floor, pixels, luminance_weights(img.colour_space), downscale))
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
-                   attributes=attrs, downscale=downscale, paths=paths, floors=floors)
+                   attributes=attrs, downscale=downscale, paths=paths, floors=floors,
+                   left_out=left_out)

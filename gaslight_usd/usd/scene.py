@@ -31,6 +31,7 @@ from pxr import Usd, UsdGeom
 
 from .. import colour
 from ..errors import InputError
+from ..progress import Progress
 from ..splats import SplatScene
 from .palette import DEFAULT_THRESHOLD, DEFAULT_TOLERANCE
 from .particlefield import MAX_LAYER_BYTES, bytes_per_splat, chunk_ranges, write_particle_field
@@ -162,8 +163,14 @@ def _write_root(path: Path, stem: str, layers: dict[str, list[str]], frame: Stag
 
 
 def export_usd(scene: SplatScene, out_path: str | Path, opts: ExportOptions | None = None,
-               source: str = "", validate_output: bool = True) -> ExportReport:
-    """Write ``out_path`` (``.usda``/``.usd``) and its layers; return what was done."""
+               source: str = "", validate_output: bool = True,
+               progress: Progress | None = None) -> ExportReport:
+    """Write ``out_path`` (``.usda``/``.usd``) and its layers; return what was done.
+
+    ``progress`` hears of each form as it starts and ends (the rig, which renders
+    a dome and fits lights, takes the longest).
+    """
+    progress = progress or Progress(quiet=True)
     opts = opts or ExportOptions()
     out_path = Path(out_path)
     if out_path.suffix.lower() not in (".usda", ".usd", ".usdc"):
@@ -190,8 +197,10 @@ def export_usd(scene: SplatScene, out_path: str | Path, opts: ExportOptions | No
             if variant not in opts.variants:
                 continue
             t0 = time.perf_counter()
+            progress.message(f"writing the {variant} layer(s)")
             names, metrics = WRITERS[variant](scratch, stem, scene, frame, prov, opts)
             report.seconds[variant] = round(time.perf_counter() - t0, 4)
+            progress.message(f"{variant} written in {report.seconds[variant]:.1f} s")
             layers[variant] = names
             report.metrics[variant] = metrics
         _write_root(scratch / out_path.name, stem, layers, frame, prov, opts)
