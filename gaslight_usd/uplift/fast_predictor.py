@@ -93,6 +93,9 @@ PARTIAL_LIMIT = 1.1
 """A clipped channel beside unclipped ones is at most this times what they imply
 (the median truth on calibration crops, seed 1000, is 1.06-1.16 times that)."""
 PARAMS_FILE = Path(__file__).with_name("fast_predictor_params.json")
+LOPO_FILE = Path(__file__).with_name("fast_predictor_lopo.json")
+"""The calibration's leave-one-panorama-out models (the bench scores each panorama's
+crops with the model fitted without it: ``recursive-fast-lopo``)."""
 RING_EDGES = (1.5, 4.0, 10.0, 30.0)
 """Outer radii of the glow rings in units of ``sqrt(H W) / 256`` pixels."""
 RING_MIN_PX = (1.5, 3.0, 6.0, 12.0)
