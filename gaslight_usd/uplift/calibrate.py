@@ -389,7 +389,8 @@ def _pooled(label: str, parts: dict[str, dict[str, np.ndarray]]) -> dict:
 
 
 def leave_one_out(data: CropSet, weights: np.ndarray, seed: int, full_model: dict,
-                  shape_heads: bool = True) -> tuple[dict, dict[str, dict]]:
+                  shape_heads: bool = True, **fit_options: int
+                  ) -> tuple[dict, dict[str, dict]]:
     """Every panorama's trusted crops scored by a model fitted without that panorama.
 
     A panorama that carries no calibration weight is scored by ``full_model``
@@ -407,7 +408,7 @@ def leave_one_out(data: CropSet, weights: np.ndarray, seed: int, full_model: dic
         left = panorama == name
         if np.any(weights[left] > 0):
             models[name] = fit(data, seed, shape_heads=shape_heads,
-                               weights=np.where(left, 0.0, weights))
+                               weights=np.where(left, 0.0, weights), **fit_options)
         per_pano[name] = scores(subset(data, judged), models.get(name, full_model))
         out[name] = summary(f"  left out {name}", per_pano[name])
     for folder in sorted({folder_of(n) for n in per_pano}):
@@ -454,6 +455,8 @@ def main(argv: list[str] | None = None) -> int:
                          "recursive-fast-lopo reads them)")
     ap.add_argument("--cache", type=Path, default=None,
                     help="keep the collected crops in this .npz (reused when it exists)")
+    ap.add_argument("--iters", type=int, nargs=2, default=[300, 400], metavar=("PRE", "RELIGHT"),
+                    help="optimiser steps on the log means, then on the relight loss")
     ap.add_argument("--mean-only", action="store_true",
                     help="fit the mean alone (cones in the ring's colour, no shape heads)")
     ap.add_argument("--no-lopo", action="store_true",
@@ -470,12 +473,13 @@ def main(argv: list[str] | None = None) -> int:
           f"{len(set(data.panoramas))} panoramas, {int(np.count_nonzero(weights))} fitted on, "
           f"in {time.perf_counter() - t0:.0f} s")
     shape_heads = not args.mean_only
-    model = fit(data, args.seed, shape_heads=shape_heads, weights=weights)
+    steps = {"pre_iters": args.iters[0], "iters": args.iters[1]}
+    model = fit(data, args.seed, shape_heads=shape_heads, weights=weights, **steps)
     results = {"fitted": report("fitted crops", subset(data, weights > 0), model)}
     command = ("python -m gaslight_usd.uplift.calibrate " + " ".join(argv or sys.argv[1:])
                ).strip()
     if not args.no_lopo:
-        lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads)
+        lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads, **steps)
         results["leave_one_panorama_out"] = lopo
         write_text(args.lopo_output, json.dumps(
             {"command": command, "features": list(FEATURES), "models": models},
