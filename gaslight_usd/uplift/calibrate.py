@@ -84,6 +84,8 @@ GROUPS = 3
 SHRINKS = (0.4, 0.55, 0.7, 0.85, 1.0)
 """Shrink factors scored beside the shipped one (:data:`.fast_predictor.SHRINK`)."""
 RENDER = {"resolution": 64, "spp": 16, "env_height": 128}
+FIT_PIXELS = 512
+"""Relight pixels per crop in the fitting loss (of 64 x 64); scores use them all."""
 
 
 @lru_cache(maxsize=8)
@@ -220,6 +222,18 @@ def subset(data: CropSet, crops: np.ndarray) -> CropSet:
                    data.trusted[crops], [n for n, c in zip(data.names, crops, strict=True) if c])
 
 
+def pixel_subset(data: CropSet, count: int, seed: int) -> CropSet:
+    """``data`` with its relight renders cut to ``count`` pixels (the same, seeded, in
+    every crop): the loss's sample mean; fitting takes P / count times less time."""
+    pixels = data.truth.shape[1]
+    if count <= 0 or count >= pixels:
+        return data
+    keep = np.sort(np.random.default_rng(seed).choice(pixels, count, replace=False))
+    return CropSet(data.features, data.log_mean, data.area, data.log_cap, data.slot,
+                   data.truth[:, keep], data.base[:, keep], data.units[..., keep], data.ring,
+                   data.align[:, keep], data.trusted, data.names)
+
+
 def relight_psnr(data: CropSet, log_mean, mix=None, ring_share=None):
     """Per-crop relight PSNR (dB) of region predictions (numpy or torch).
 
@@ -263,17 +277,19 @@ def relight_psnr(data: CropSet, log_mean, mix=None, ring_share=None):
 
 def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
         iters: int = 400, log_weight: float = 0.3, shape_heads: bool = True,
-        weights: np.ndarray | None = None) -> dict:
+        weights: np.ndarray | None = None, pixels: int = FIT_PIXELS) -> dict:
     """Fit the perceptron to ``data``; see the module doc.
 
     ``shape_heads`` False: the mean alone (cones in the ring's colour).
     ``weights`` (C,): each crop's weight in both losses (default 1; 0 drops it).
+    ``pixels``: relight pixels per crop in the loss (:func:`pixel_subset`; 0: all).
     """
     import torch
 
     if weights is not None and np.any(np.asarray(weights) <= 0):
         data, weights = subset(data, np.asarray(weights) > 0), np.asarray(weights)[
             np.asarray(weights) > 0]
+    data = pixel_subset(data, pixels, seed)
     torch.manual_seed(seed)
     torch.set_num_threads(1)  # small tensors: one thread is 2-3x faster than two here
     x = data.features
