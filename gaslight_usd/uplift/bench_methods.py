@@ -120,10 +120,11 @@ def contact_sheet(bench_json: Path, output: Path, count: int = 8, seed: int = 0)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..evaluation.reference import make_pair, shared_sources
+    from ..evaluation.reference import make_pair
+    from ..evaluation.shared_panoramas import load_shared
 
     rows = json.loads(Path(bench_json).read_text())["rows"]
-    sources = {s.name: s for s in shared_sources()}
+    sources = {s.name: s for s in load_shared()}
     cases = worst_cases(rows, count)
     fig, axes = plt.subplots(len(cases), 4, figsize=(12, 2.4 * len(cases)), squeeze=False)
     for ax_row, (case, psnr, base) in zip(axes, cases, strict=True):

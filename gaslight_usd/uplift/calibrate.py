@@ -62,6 +62,7 @@ from .curves import Curve, lut_curve
 from .fast_predictor import (
     CLIP,
     FEATURES,
+    LEGACY_FEATURES,
     LOPO_FILE,
     PARAMS_FILE,
     PROFILES,
@@ -74,6 +75,8 @@ from .fast_predictor import (
 )
 
 DEFAULT_CROPS = 600
+DEFAULT_FEATURES: tuple[str, ...] = FEATURES
+"""The features the shipped model uses (chosen by the leave-one-panorama-out score)."""
 DEFAULT_EXCLUDE: tuple[str, ...] = ()
 """Panoramas never fitted on by default (clamped crops are weighted instead)."""
 DEFAULT_WEIGHTS = {"clamped": 0.0, "no_light": 1.0}
@@ -209,6 +212,23 @@ def collect(sources: list, crops: int, seed: int) -> CropSet:
                    np.asarray(trusted, bool), names)
 
 
+def refresh_features(data: CropSet, sources: list, seed: int) -> CropSet:
+    """``data`` with every region's features recomputed (all of :data:`FEATURES`) from
+    its crop, rebuilt from ``sources`` by name: a cache made before a feature was
+    added stays usable without its renders being made again."""
+    by_name = {s.name: s for s in sources}
+    feats = []
+    for name in data.names:
+        panorama, index = name.rsplit("-", 1)
+        pair = make_pair(by_name[panorama], int(index), seed)
+        curve = evaluation_curve(pair.curve)
+        feats.append(region_features(curve.to_linear(pair.ldr), pair.ldr).features)
+    features = np.concatenate(feats)
+    if len(features) != len(data.log_mean):
+        raise ValueError("the cached crops do not match their sources (region count differs)")
+    return CropSet(features, *(getattr(data, k) for k in list(CropSet.__dataclass_fields__)[1:]))
+
+
 def subset(data: CropSet, crops: np.ndarray) -> CropSet:
     """The crops ``crops`` (bool per crop) of ``data``, regions renumbered."""
     crops = np.asarray(crops, bool)
@@ -277,12 +297,14 @@ def relight_psnr(data: CropSet, log_mean, mix=None, ring_share=None):
 
 def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
         iters: int = 400, log_weight: float = 0.3, shape_heads: bool = True,
-        weights: np.ndarray | None = None, pixels: int = FIT_PIXELS) -> dict:
+        weights: np.ndarray | None = None, pixels: int = FIT_PIXELS,
+        features: tuple[str, ...] = FEATURES) -> dict:
     """Fit the perceptron to ``data``; see the module doc.
 
     ``shape_heads`` False: the mean alone (cones in the ring's colour).
     ``weights`` (C,): each crop's weight in both losses (default 1; 0 drops it).
     ``pixels``: relight pixels per crop in the loss (:func:`pixel_subset`; 0: all).
+    ``features``: the names of the columns of ``data.features`` (:data:`FEATURES`) used.
     """
     import torch
 
@@ -292,7 +314,7 @@ def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
     data = pixel_subset(data, pixels, seed)
     torch.manual_seed(seed)
     torch.set_num_threads(1)  # small tensors: one thread is 2-3x faster than two here
-    x = data.features
+    x = data.features[:, [FEATURES.index(f) for f in features]]
     mean, std = x.mean(0), x.std(0) + 1e-6
     mean[-1], std[-1] = 0.0, 1.0  # the constant feature stays 1
     xt = torch.tensor((x - mean) / std, dtype=torch.float32)
@@ -335,7 +357,7 @@ def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
     with torch.no_grad():
         rmse = float(torch.sqrt(torch.mean((heads()[0] - yt) ** 2)))
     linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    return {"mean": mean.tolist(), "std": std.tolist(),
+    return {"features": list(features), "mean": mean.tolist(), "std": std.tolist(),
             "layers": [[m.weight.detach().numpy().T.round(6).tolist(),
                         m.bias.detach().numpy().round(6).tolist()] for m in linears],
             "profiles": list(PROFILES), "train_rmse_stops": rmse}
@@ -434,6 +456,14 @@ def leave_one_out(data: CropSet, weights: np.ndarray, seed: int, full_model: dic
     return out, models
 
 
+def _rounded(model: dict, digits: int = 4) -> dict:
+    """A LOPO model with its weights rounded (the bench's file stays small)."""
+    def r(v):
+        return [r(x) for x in v] if isinstance(v, list) else (
+            round(v, digits) if isinstance(v, float) else v)
+    return {k: r(v) if k in ("layers", "mean", "std") else v for k, v in model.items()}
+
+
 def _collect_cached(cache: Path | None, sources: list, crops: int, seed: int) -> CropSet:
     """Collect the crops, or load them from ``cache`` (written after collecting)."""
     if cache is not None and cache.exists():
@@ -473,6 +503,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="keep the collected crops in this .npz (reused when it exists)")
     ap.add_argument("--iters", type=int, nargs=2, default=[300, 400], metavar=("PRE", "RELIGHT"),
                     help="optimiser steps on the log means, then on the relight loss")
+    ap.add_argument("--features", nargs="*", default=list(DEFAULT_FEATURES), metavar="NAME",
+                    help="region features the model uses (of fast_predictor.FEATURES; "
+                         "'legacy' for the first model's fifteen)")
     ap.add_argument("--mean-only", action="store_true",
                     help="fit the mean alone (cones in the ring's colour, no shape heads)")
     ap.add_argument("--no-lopo", action="store_true",
@@ -483,25 +516,33 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     sources = shared_sources(args.hdri) if args.hdri else load_shared(args.panoramas)
     data = _collect_cached(args.cache, sources, args.crops, args.seed)
+    if data.features.shape[1] != len(FEATURES):
+        data = refresh_features(data, sources, args.seed)
+    features = LEGACY_FEATURES if args.features == ["legacy"] else tuple(args.features)
+    unknown = [f for f in features if f not in FEATURES]
+    if unknown or features[-1:] != ("one",):
+        ap.error(f"--features: unknown {unknown} (the list ends with 'one'); "
+                 f"known: {' '.join(FEATURES)}")
     weights = crop_weights(data, args.clamped_weight, args.no_light_weight,
                            tuple(args.exclude))
     print(f"collected {len(data.names)} clipped crops ({len(data.log_mean)} regions) of "
           f"{len(set(data.panoramas))} panoramas, {int(np.count_nonzero(weights))} fitted on, "
           f"in {time.perf_counter() - t0:.0f} s")
     shape_heads = not args.mean_only
-    steps = {"pre_iters": args.iters[0], "iters": args.iters[1]}
+    steps = {"pre_iters": args.iters[0], "iters": args.iters[1], "features": features}
     model = fit(data, args.seed, shape_heads=shape_heads, weights=weights, **steps)
     results = {"fitted": report("fitted crops", subset(data, weights > 0), model)}
     command = ("python -m gaslight_usd.uplift.calibrate " + " ".join(argv or sys.argv[1:])
                ).strip()
     if not args.no_lopo:
         lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads, **steps)
+        models = {name: _rounded(m) for name, m in models.items()}
         results["leave_one_panorama_out"] = lopo
         write_text(args.lopo_output, json.dumps(
-            {"command": command, "features": list(FEATURES), "models": models},
+            {"command": command, "features": list(features), "models": models},
             separators=(",", ":")))
     fitted = sorted(set(data.panoramas[weights > 0]))
-    params = {"features": list(FEATURES), "model": model,
+    params = {"features": list(features), "model": model,
               "calibration": {"command": command, "crops": args.crops, "seed": args.seed,
                               "panoramas": fitted,
                               "weights": {"clamped": args.clamped_weight,

@@ -100,9 +100,12 @@ RING_EDGES = (1.5, 4.0, 10.0, 30.0)
 """Outer radii of the glow rings in units of ``sqrt(H W) / 256`` pixels."""
 RING_MIN_PX = (1.5, 3.0, 6.0, 12.0)
 """Smallest outer radii in pixels (small photos still get one pixel per ring)."""
-FEATURES = ("log_area", "log_max_depth", "log_compact", "log_ring0", "log_ring1",
-            "log_ring2", "log_ring3", "glow_slope", "white0", "white1", "ring_sat",
-            "all_clipped", "log_median", "clipped_frac", "one")
+LEGACY_FEATURES = ("log_area", "log_max_depth", "log_compact", "log_ring0", "log_ring1",
+                   "log_ring2", "log_ring3", "glow_slope", "white0", "white1", "ring_sat",
+                   "all_clipped", "log_median", "clipped_frac", "one")
+"""The features of a model whose parameters do not name theirs."""
+FEATURES = LEGACY_FEATURES[:-1] + ("area_share", "row", "log_p99", "bright_frac", "one")
+"""Every feature :func:`region_features` computes; a model uses those it names."""
 LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
@@ -149,7 +152,11 @@ def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
     if not full_mask.any():
         return None
     unit = _unit(full_mask.shape)
-    median = float(np.median(np.clip(linear, 0.0, 1.0) @ LUM))
+    full_lum = np.clip(linear, 0.0, 1.0) @ LUM
+    median = float(np.median(full_lum))
+    unclipped_lum = full_lum[~full_mask]
+    p99 = float(np.percentile(unclipped_lum, 99.0)) if unclipped_lum.size else 1.0
+    bright = float(np.mean(unclipped_lum >= 0.5)) if unclipped_lum.size else 0.0
     radii = [max(edge * unit, min_px) for edge, min_px in zip(RING_EDGES, RING_MIN_PX,
                                                               strict=True)]
     # Everything below happens in the window around the clipped pixels (the rings
@@ -160,6 +167,8 @@ def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
     depth = ndimage.distance_transform_edt(mask).astype(np.float32)
     lab = labels[mask]
     area = np.bincount(lab, minlength=count + 1)[1:].astype(np.float64)
+    rows_mean = np.bincount(lab, weights=np.nonzero(mask)[0],
+                            minlength=count + 1)[1:] / area
     max_depth = np.zeros(count + 1)
     np.maximum.at(max_depth, lab, depth[mask])
     max_depth = max_depth[1:]
@@ -206,6 +215,10 @@ def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
         all_clipped,
         np.full(count, np.log2(max(median, 1e-4))),
         np.full(count, float(full_mask.mean())),
+        area / area.sum(),
+        (rows_mean + win[0].start) / full_mask.shape[0] - 0.5,
+        np.full(count, np.log2(max(p99, 1e-4))),
+        np.full(count, bright),
         np.ones(count),
     ]
     feats = np.stack(columns, axis=-1).astype(np.float32)
@@ -221,13 +234,18 @@ class Mlp:
     """A tiny perceptron evaluated in numpy: standardise, tanh layers, softplus out."""
 
     def __init__(self, params: dict):
+        self.features = tuple(params.get("features", LEGACY_FEATURES))
+        self.columns = np.array([FEATURES.index(f) for f in self.features])
         self.mean = np.asarray(params["mean"], np.float32)
         self.std = np.asarray(params["std"], np.float32)
         self.layers = [(np.asarray(w, np.float32), np.asarray(b, np.float32))
                        for w, b in params["layers"]]
 
     def raw(self, x: np.ndarray) -> np.ndarray:
-        """The last layer's outputs ``(R, n_out)``."""
+        """The last layer's outputs ``(R, n_out)`` from every feature ``(R, len(FEATURES))``
+        (or from the model's own columns ``(R, len(self.features))``)."""
+        if x.shape[1] != len(self.features):
+            x = x[:, self.columns]
         h = (x - self.mean) / self.std
         for i, (w, b) in enumerate(self.layers):
             h = h @ w + b
