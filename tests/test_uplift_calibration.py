@@ -134,8 +134,11 @@ def test_bench_summaries_leave_clamped_crops_out_and_report_unclipped_apart():
     assert got[("clipped:hdri-polyhaven-512", "m")]["gain_mean"] == pytest.approx(4.0)
     apart = got[("nothing-clipped", "m")]
     assert apart["cases"] == 1 and apart["gain_mean"] == 0.0
-    assert got[("clamped", "m")] == {"group": "clamped", "method": "m", "cases": 1}
-    assert [s["group"] for s in suite_uplift.summaries(rows)][0] == "clipped"
+    assert got[("clamped (left out)", "-")] == {"group": "clamped (left out)", "method": "-",
+                                               "cases": 1}
+    groups = [s["group"] for s in suite_uplift.summaries(rows)]
+    assert groups[0] == "clipped" and groups[-1] == "clamped (left out)"
+    assert not any(g.startswith("clamped") for g in groups[:-1])
 
 
 @needs_polyhaven

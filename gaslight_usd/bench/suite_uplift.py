@@ -300,26 +300,32 @@ def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Relight PSNR mean / median and gain over ``ldr-baseline`` per method and group.
 
     Groups (:func:`case_group`): ``clipped`` (the headline), ``clipped:FOLDER``
-    per shared folder, ``nothing-clipped``; ``clamped`` cases are only counted.
+    per shared folder, ``nothing-clipped``; clamped cases are only counted (one
+    row, ``clamped (left out)``).
     A gain pairs a method's case with the baseline's same case.
     """
     base = {r["case"]: r["relight_psnr"] for r in rows if r["method"] == BASELINE}
     groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    clamped: set[str] = set()
     for row in rows:
         group = case_group(row)
+        if group == "clamped":
+            clamped.add(row["case"])
+            continue
         keys = [group] + ([f"clipped:{row.get('folder', '?')}"] if group == "clipped" else [])
         for key in keys:
             groups.setdefault((key, row["method"]), []).append(row)
-    order = {"clipped": 0, "nothing-clipped": 2, "clamped": 3}
+    order = {"clipped": 0, "nothing-clipped": 2}
     out = []
     for (group, method), members in sorted(
             groups.items(), key=lambda kv: (order.get(kv[0][0], 1), kv[0][0])):
+        psnr = [float(r["relight_psnr"]) for r in members]
+        gain = [float(r["relight_psnr"]) - float(base.get(r["case"], math.nan))
+                for r in members]
         entry: dict[str, Any] = {"group": group, "method": method, "cases": len(members)}
-        if group != "clamped":
-            psnr = [float(r["relight_psnr"]) for r in members]
-            gain = [float(r["relight_psnr"]) - float(base.get(r["case"], math.nan))
-                    for r in members]
-            entry["relight_psnr_mean"], entry["relight_psnr_median"] = _stats(psnr)
-            entry["gain_mean"], entry["gain_median"] = _stats(gain)
+        entry["relight_psnr_mean"], entry["relight_psnr_median"] = _stats(psnr)
+        entry["gain_mean"], entry["gain_median"] = _stats(gain)
         out.append(entry)
+    if clamped:
+        out.append({"group": "clamped (left out)", "method": "-", "cases": len(clamped)})
     return out
