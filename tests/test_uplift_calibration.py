@@ -149,3 +149,13 @@ def test_bench_rows_say_folder_clipping_and_trust():
         assert row["ldr_clipped"] in (True, False)
         assert suite_uplift.case_group(row) in ("clipped", "nothing-clipped", "clamped")
     assert [r["source"] for r in rows] == ["city", "courtyard"]
+
+
+def test_other_files_of_the_hdri_folder_join_by_their_stem(tmp_path, monkeypatch):
+    pixels = np.ones((8, 16, 3), np.float32)
+    pixels[2, 3] = 500.0
+    write_exr(tmp_path / "mine.exr", pixels, "lin_rec709")
+    monkeypatch.setenv("GASLIGHT_HDRI_DIR", str(tmp_path))
+    sources = shared.load_shared(folders=(shared.HDRI,))
+    assert [s.name for s in sources] == ["mine"] and sources[0].light_truth
+    assert float(sources[0].pixels.max()) == 500.0

@@ -103,7 +103,8 @@ def folder_of(name: str) -> str:
 def load_shared(names: list[str] | None = None, folders: tuple[str, ...] = FOLDERS
                 ) -> list[HDRSource]:
     """The shared panoramas present on disk (``names`` to pick), named and clamp-tagged
-    as :data:`PANORAMAS` says, in table order."""
+    as :data:`PANORAMAS` says, in table order; then any other EXR / HDR file of the
+    ``hdri`` folder (``$GASLIGHT_HDRI_DIR`` may point at the user's own), by stem."""
     out = []
     for entry in PANORAMAS:
         if entry.folder not in folders or (names is not None and entry.name not in names):
@@ -114,4 +115,10 @@ def load_shared(names: list[str] | None = None, folders: tuple[str, ...] = FOLDE
         source = load_source(path, clamp_level=entry.clamp_level, panorama=True)
         source.name = entry.name
         out.append(source)
+    listed = {p.stem for p in PANORAMAS if p.folder == HDRI}
+    hdri = folder_path(HDRI)
+    if HDRI in folders and hdri.is_dir():
+        extra = sorted(p for p in hdri.iterdir() if p.suffix.lower() in (".exr", ".hdr")
+                       and p.stem not in listed and (names is None or p.stem in names))
+        out += [load_source(p) for p in extra]
     return out

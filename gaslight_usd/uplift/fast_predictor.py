@@ -19,7 +19,14 @@ photo's white, so 0 means "just white") from region features:
 * colour: the ring's saturation and how many of the region's pixels clip in
   all three channels;
 * context: the photo's median luminance and clipped fraction (how far the
-  photo is over-exposed).
+  photo is over-exposed), the 99th percentile of its unclipped luminance and
+  the share of unclipped pixels above half white (a photo metered for a dark
+  room shows its bright surroundings near white), the region's share of all
+  clipped pixels and its height in the frame.
+
+A model names the features it was fitted on (its parameters' ``features``;
+the first model's fifteen, :data:`LEGACY_FEATURES`, when it does not), so a
+feature added later never breaks an older parameter file.
 
 Lengths are in units of ``sqrt(H W) / 256`` pixels, so the model does not
 depend on resolution. The calibration fits the relighting error itself (an
