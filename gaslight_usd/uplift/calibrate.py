@@ -532,8 +532,11 @@ def main(argv: list[str] | None = None) -> int:
     steps = {"pre_iters": args.iters[0], "iters": args.iters[1], "features": features}
     model = fit(data, args.seed, shape_heads=shape_heads, weights=weights, **steps)
     results = {"fitted": report("fitted crops", subset(data, weights > 0), model)}
-    command = ("python -m gaslight_usd.uplift.calibrate " + " ".join(argv or sys.argv[1:])
-               ).strip()
+    given = list(sys.argv[1:] if argv is None else argv)
+    if "--cache" in given:  # a cache only saves time: the numbers do not depend on it
+        at = given.index("--cache")
+        del given[at:at + 2]
+    command = " ".join(["python -m gaslight_usd.uplift.calibrate", *given])
     if not args.no_lopo:
         lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads, **steps)
         models = {name: _rounded(m) for name, m in models.items()}
