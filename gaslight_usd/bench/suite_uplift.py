@@ -239,7 +239,12 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
         sources = shared_sources()  # no shared folder found: its clear error
     renderer = RelightRenderer(resolution=s["render"], spp=s["spp"], env_height=s["env"],
                                seed=seed)
-    wanted = options.get("methods") or methods()
+    available = methods()
+    wanted = options.get("methods") or available
+    unknown = [m for m in wanted if m not in available]
+    if unknown:
+        raise ValueError(f"unknown uplift method(s) {', '.join(unknown)}; "
+                         f"known: {', '.join(available)}")
     rows: list[dict[str, Any]] = []
     for i in range(count):
         start = time.perf_counter()

@@ -50,6 +50,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", action="append", choices=PRESET_NAMES, default=[],
                    help="fit suite: fit presets to measure (repeatable; default fast and "
                         "balanced; balanced takes about 50 min on 2 cores)")
+    p.add_argument("--method", action="append", default=[], metavar="NAME",
+                   help="uplift suite: only these methods (repeatable; default: all)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REPORT_DIR",
                    help="folder for the reports (created)")
     add_common(p)
@@ -102,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
         progress.message(f"suite module {module} skipped: {why}")
     names = args.suite or list(discovery.suites)
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
-               "verbose": args.verbose, "presets": tuple(args.preset) or None}
+               "verbose": args.verbose, "presets": tuple(args.preset) or None,
+               "methods": list(args.method) or None}
     results = []
     for name in names:
         progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")
