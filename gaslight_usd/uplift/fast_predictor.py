@@ -85,17 +85,15 @@ PROFILES = (1.0, 3.0, 12.0)
 SHRINK = 0.7
 """Factor on every region's predicted ``log2`` mean (towards "just white") at use.
 
-The perceptron is fitted on 6 panoramas; on a panorama it never saw, its full
-estimate overshoots often enough to cost more than it gains. Leave-one-panorama-out
-(``python -m gaslight_usd.uplift.calibrate --lopo``: 281 crops, 64 px relight,
-every factor of ``calibrate.SHRINKS`` scored) gives mean gains
-+0.78 / +1.07 / +1.29 / +1.37 / +1.25 dB at 1.0 / 0.85 / 0.7 / 0.55 / 0.4, worst
-crops -18.7 / -14.2 / -8.6 / -4.3 / -1.2 dB; on the panoramas it was fitted on the
-gain falls (+4.9 -> +3.1 dB at 0.7, +2.2 at 0.55). 0.7 keeps most of the unseen gain
-and more of the seen one. On the uplift bench (200 crops, mostly of the fitting
-panoramas) the mean gain is +2.16 dB against +3.12 unshrunk (``recursive-fast-unshrunk``);
-on its sunset crops (never fitted) +0.56 against +0.35, on studio (excluded: its
-lamps are clamped) +0.99 against +1.38."""
+On a panorama it never saw, the perceptron's full estimate overshoots often
+enough to cost more than it gains (an overestimated "sun" in a near-white sky
+costs far more relight PSNR than an underestimate). The factor is chosen by the
+leave-one-panorama-out gain over all the calibration panoramas
+(``python -m gaslight_usd.uplift.calibrate`` scores every factor of
+``calibrate.SHRINKS``), and checked on the uplift bench, where
+``recursive-fast-unshrunk`` is charted beside it and ``recursive-fast-lopo``
+scores each panorama with the model fitted without it
+(``gaslight2usd bench --suite uplift --count 200``)."""
 PARTIAL_LIMIT = 1.1
 """A clipped channel beside unclipped ones is at most this times what they imply
 (the median truth on calibration crops, seed 1000, is 1.06-1.16 times that)."""
