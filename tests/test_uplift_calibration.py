@@ -159,3 +159,20 @@ def test_other_files_of_the_hdri_folder_join_by_their_stem(tmp_path, monkeypatch
     sources = shared.load_shared(folders=(shared.HDRI,))
     assert [s.name for s in sources] == ["mine"] and sources[0].light_truth
     assert float(sources[0].pixels.max()) == 500.0
+
+
+@needs_polyhaven
+def test_cli_bench_runs_only_the_methods_named(tmp_path, capsys):
+    from gaslight_usd.cli.main import main
+
+    code = main(["bench", "--suite", "uplift", "--quick", "--count", "1", "--method",
+                 "ldr-baseline", "-q", "-o", str(tmp_path)])
+    assert code == 0
+    report = json.loads((tmp_path / "uplift.json").read_text())
+    assert {r["method"] for r in report["rows"]} == {"ldr-baseline"}
+    assert report["summaries"] and {s["method"] for s in report["summaries"]} <= {
+        "ldr-baseline", "-"}
+    code = main(["bench", "--suite", "uplift", "--quick", "--count", "1", "--method", "nope",
+                 "-q", "-o", str(tmp_path / "bad")])
+    assert code != 0 and "unknown uplift method" in json.dumps(
+        json.loads((tmp_path / "bad" / "bench.json").read_text()))
