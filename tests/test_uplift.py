@@ -303,18 +303,16 @@ def test_fast_predictor_stays_near_white_for_sky_that_only_just_clips():
 
 
 @pytest.mark.parametrize(("name", "least_gain"), [("forest", 1.5), ("night", 2.0),
-                                                  ("sunset", -3.0)])
+                                                  ("sunset", 0.0)])
 def test_fast_predictor_relights_unseen_crops(name, least_gain):
     """Relight PSNR gain over the baseline on crops neither calibration nor bench uses.
 
-    forest and night: calibration panoramas, unseen crops (seed 7, small renders), a gain.
-    The crops come from the bundled 256x128 copies (tests/data/README.md): their area
-    averaging spreads night's small lamps over bigger, dimmer pixels (same power), which
-    the predictor, calibrated on the full-size panoramas, lifts less well, so night's bar
-    is 2 dB where the full-size panorama clears 3 dB.
-    sunset: held out of calibration; its hazy low sun is much dimmer than the
-    calibration suns, and the model still overshoots its glow a little (known
-    gap): it must at least not lose more than 3 dB on average.
+    Calibration panoramas, unseen crops (seed 7, small renders): a gain. The crops
+    come from the bundled 256x128 copies (tests/data/README.md): their area averaging
+    spreads night's small lamps over bigger, dimmer pixels (same power), which the
+    predictor, calibrated on the full-size panoramas, lifts less well, so night's bar
+    is 2 dB where the full-size panorama clears 2.5 dB. sunset's hazy low sun is much
+    dimmer than the other suns: the gain is small there, but no loss.
     """
     from gaslight_usd.evaluation.reference import load_source, make_pair
     from gaslight_usd.evaluation.relight import RelightRenderer, relight_scores

@@ -11,7 +11,9 @@ Each defines (the bench contract)::
     def run(options: dict) -> list[dict]: ...
 
 and optionally ``notes(options) -> list[str]`` (settings worth printing, e.g.
-a reduced render size), ``TABLE`` (the columns the CLI prints) and
+a reduced render size), ``summaries(rows) -> list[dict]`` (the suite's own
+grouped figures, e.g. means per group of cases: written to ``<suite>.json``
+and printed as a table), ``TABLE`` (the columns the CLI prints) and
 ``REFERENCES`` (methods such as an oracle: charted grey, kept off the front). Options:
 ``quick`` (bool: well under a minute), ``seed`` (int), ``out`` (Path, the
 report folder), ``count`` (int or None: cases, suite default when None),

@@ -27,6 +27,8 @@ class SuiteResult:
     name: str
     rows: list[dict[str, Any]] = field(default_factory=list)
     medians: list[dict[str, Any]] = field(default_factory=list)
+    summaries: list[dict[str, Any]] = field(default_factory=list)
+    """The suite's own grouped figures (optional ``summaries(rows)``), e.g. means per group."""
     seconds: float = 0.0
     error: str | None = None
     files: list[Path] = field(default_factory=list)
@@ -117,6 +119,9 @@ def run_suite(module: ModuleType, options: dict[str, Any], out: Path) -> SuiteRe
         result.error = result.error or "the suite returned no rows"
         return result
     result.medians = aggregate(result.rows)
+    summarise = getattr(module, "summaries", None)
+    if callable(summarise):
+        result.summaries = [dict(s) for s in summarise(result.rows)]
     x_key, x_label = module.X
     y_key, y_label = module.Y
     higher = bool(getattr(module, "HIGHER_IS_BETTER", True))
@@ -135,7 +140,7 @@ def run_suite(module: ModuleType, options: dict[str, Any], out: Path) -> SuiteRe
         "higher_is_better": higher, "seconds": result.seconds, "notes": result.notes,
         "options": {k: v for k, v in options.items() if k != "progress"},
         "versions": versions(), "error": result.error,
-        "medians": result.medians, "rows": result.rows,
+        "medians": result.medians, "summaries": result.summaries, "rows": result.rows,
     }
     json_path = write_text(out / f"{name}.json", json.dumps(jsonable(report), indent=2))
     png_path = pareto_chart(result.medians, x_key, x_label, y_key, y_label, higher,

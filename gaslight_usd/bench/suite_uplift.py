@@ -1,8 +1,10 @@
 """Suite "uplift": single-photo LDR -> HDR methods on real-HDR reference pairs.
 
 Cases are :mod:`~gaslight_usd.evaluation.reference` pairs cut from the
-shared CC0 panoramas (200 in the full run, 8 with ``quick``; ``count``
-overrides). Per case and method:
+shared CC0 panoramas of both shared folders, named and clamp-tagged by
+:mod:`~gaslight_usd.evaluation.shared_panoramas` (200 in the full run, cycling
+over the panoramas, 8 with ``quick``; ``count`` overrides; option ``hdri_dir``:
+one folder of the user's instead). Per case and method:
 
 - ``sec_per_mp``: wall time of the method's call per megapixel of photo;
 - ``relight_mse`` / ``relight_psnr`` / ``relight_angle_deg``: the relighting
@@ -14,6 +16,14 @@ overrides). Per case and method:
   (after the same alignment, pixels weighted by solid angle), only on cases
   whose light truth is trustworthy and whose brightest region is clipped in
   the photo; NaN elsewhere (left out of medians).
+
+Beside the runner's medians over every case, :func:`summaries` gives per
+method the mean and median relight PSNR, and the gain over ``ldr-baseline``
+on the same cases, in groups: ``clipped`` (crops with a clipped pixel whose
+light truth is good: the uplift's job, the headline), the same per shared
+folder, ``nothing-clipped`` (reported apart: every method should equal the
+baseline there) and ``clamped`` (crops holding a clamped source pixel: their
+truth is wrong, so they are left out of every other group and only counted).
 
 Built-in methods: ``ldr-baseline`` (the photo through the inverse camera
 curve, no uplift), ``oracle`` (the truth itself: the ceiling) and
@@ -47,6 +57,7 @@ from ..evaluation import curves
 from ..evaluation.metrics import hdr_errors, light_source_errors
 from ..evaluation.reference import ReferencePair, make_pair, shared_sources
 from ..evaluation.relight import RelightRenderer, compare_renders
+from ..evaluation.shared_panoramas import folder_of, load_shared
 
 NAME = "uplift"
 DESCRIPTION = "LDR -> HDR uplift on real-HDR reference pairs (relighting, PU21, light power)"
@@ -80,6 +91,12 @@ def register_uplift_method(name: str, fn: UpliftFn) -> None:
     a name again replaces it.
     """
     _METHODS[name] = lambda pair: fn(pair.ldr, pair.curve)
+
+
+def register_pair_method(name: str, fn: Callable[[ReferencePair], np.ndarray]) -> None:
+    """Add a method that needs to know which panorama a case comes from (``pair.spec``)
+    but must not read ``pair.truth``: e.g. a model fitted without that panorama."""
+    _METHODS[name] = fn
 
 
 def ldr_baseline(ldr_encoded: np.ndarray, curve: str) -> np.ndarray:
@@ -216,10 +233,18 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     s = _sizes(options)
     width, height = s["photo"]
     progress = options.get("progress")
-    sources = shared_sources(options.get("hdri_dir"))
+    hdri_dir = options.get("hdri_dir")
+    sources = shared_sources(hdri_dir) if hdri_dir else load_shared()
+    if not sources:
+        sources = shared_sources()  # no shared folder found: its clear error
     renderer = RelightRenderer(resolution=s["render"], spp=s["spp"], env_height=s["env"],
                                seed=seed)
-    wanted = options.get("methods") or methods()
+    available = methods()
+    wanted = options.get("methods") or available
+    unknown = [m for m in wanted if m not in available]
+    if unknown:
+        raise ValueError(f"unknown uplift method(s) {', '.join(unknown)}; "
+                         f"known: {', '.join(available)}")
     rows: list[dict[str, Any]] = []
     for i in range(count):
         start = time.perf_counter()
@@ -229,7 +254,10 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
         truth_render = renderer.render(pair.truth, "perspective")
         truth_render_seconds = time.perf_counter() - start
         base = {
-            "case": pair.name, "source": pair.spec.source, "curve": pair.curve,
+            "case": pair.name, "source": pair.spec.source,
+            "folder": str(hdri_dir) if hdri_dir else folder_of(pair.spec.source),
+            "ldr_clipped": bool(np.any(pair.ldr.max(axis=-1) >= CLIP_LEVEL)),
+            "curve": pair.curve,
             "fov": pair.spec.fov, "aimed_at_light": pair.spec.aimed_at_light,
             "clipped_fraction": pair.clipped_fraction, "light_truth": pair.light_truth,
             "light_clipped": pair.light_clipped, "pair_seconds": pair_seconds,
@@ -254,3 +282,55 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
         if progress is not None:
             progress.update(i + 1, count, case=pair.name)
     return rows
+
+
+BASELINE = "ldr-baseline"
+
+
+def case_group(row: dict[str, Any]) -> str:
+    """``clamped`` (the truth is wrong: left out), ``nothing-clipped`` or ``clipped``."""
+    if not row.get("light_truth", True):
+        return "clamped"
+    return "clipped" if row.get("ldr_clipped", True) else "nothing-clipped"
+
+
+def _stats(values: list[float]) -> tuple[float, float]:
+    finite = [v for v in values if math.isfinite(v)]
+    if not finite:
+        return math.nan, math.nan
+    return float(np.mean(finite)), float(np.median(finite))
+
+
+def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Relight PSNR mean / median and gain over ``ldr-baseline`` per method and group.
+
+    Groups (:func:`case_group`): ``clipped`` (the headline), ``clipped:FOLDER``
+    per shared folder, ``nothing-clipped``; clamped cases are only counted (one
+    row, ``clamped (left out)``).
+    A gain pairs a method's case with the baseline's same case.
+    """
+    base = {r["case"]: r["relight_psnr"] for r in rows if r["method"] == BASELINE}
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    clamped: set[str] = set()
+    for row in rows:
+        group = case_group(row)
+        if group == "clamped":
+            clamped.add(row["case"])
+            continue
+        keys = [group] + ([f"clipped:{row.get('folder', '?')}"] if group == "clipped" else [])
+        for key in keys:
+            groups.setdefault((key, row["method"]), []).append(row)
+    order = {"clipped": 0, "nothing-clipped": 2}
+    out = []
+    for (group, method), members in sorted(
+            groups.items(), key=lambda kv: (order.get(kv[0][0], 1), kv[0][0])):
+        psnr = [float(r["relight_psnr"]) for r in members]
+        gain = [float(r["relight_psnr"]) - float(base.get(r["case"], math.nan))
+                for r in members]
+        entry: dict[str, Any] = {"group": group, "method": method, "cases": len(members)}
+        entry["relight_psnr_mean"], entry["relight_psnr_median"] = _stats(psnr)
+        entry["gain_mean"], entry["gain_median"] = _stats(gain)
+        out.append(entry)
+    if clamped:
+        out.append({"group": "clamped (left out)", "method": "-", "cases": len(clamped)})
+    return out

@@ -50,6 +50,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--preset", action="append", choices=PRESET_NAMES, default=[],
                    help="fit suite: fit presets to measure (repeatable; default fast and "
                         "balanced; balanced takes about 50 min on 2 cores)")
+    p.add_argument("--method", action="append", default=[], metavar="NAME",
+                   help="uplift suite: only these methods (repeatable; default: all)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REPORT_DIR",
                    help="folder for the reports (created)")
     add_common(p)
@@ -76,6 +78,16 @@ def median_table(result: SuiteResult, columns: list[str]) -> str:
     return "\n".join(lines)
 
 
+def summary_table(summaries: list[dict[str, Any]]) -> str:
+    """A plain-text table of a suite's own summaries (columns in first-seen order)."""
+    header = list(dict.fromkeys(k for s in summaries for k in s))
+    body = [[_format(s.get(c, float("nan"))) for c in header] for s in summaries]
+    widths = [max(len(h), *(len(r[i]) for r in body)) for i, h in enumerate(header)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)) for r in body]
+    return "\n".join(lines)
+
+
 def _columns(module: Any) -> list[str]:
     table = getattr(module, "TABLE", None)
     return list(table) if table else list(dict.fromkeys([module.X[0], module.Y[0]]))
@@ -92,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
         progress.message(f"suite module {module} skipped: {why}")
     names = args.suite or list(discovery.suites)
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
-               "verbose": args.verbose, "presets": tuple(args.preset) or None}
+               "verbose": args.verbose, "presets": tuple(args.preset) or None,
+               "methods": list(args.method) or None}
     results = []
     for name in names:
         progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")
@@ -107,6 +120,8 @@ def run(args: argparse.Namespace) -> int:
             text.append(f"  FAILED: {result.error}")
         if result.medians:
             text.append(median_table(result, _columns(module)))
+        if result.summaries:
+            text.append(summary_table(result.summaries))
             text.append("  wrote " + ", ".join(str(f) for f in result.files))
     summary = {
         "output": str(args.output),
@@ -116,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
         "skipped_modules": discovery.broken,
     }
     write_text(Path(args.output) / "bench.json", json.dumps(summary, indent=2))
-    emit(args, jsonable({**summary, "medians": {r.name: r.medians for r in results}}),
+    emit(args, jsonable({**summary, "medians": {r.name: r.medians for r in results},
+                         "summaries": {r.name: r.summaries for r in results if r.summaries}}),
          "\n".join(text))
     return 0 if all(r.ok for r in results) else EXIT_FAILED

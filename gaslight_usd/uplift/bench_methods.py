@@ -5,7 +5,11 @@ Methods: ``recursive-fast`` (the paper's recursion with the fast predictor),
 ``recursive-fast-unshrunk`` (the same with its estimates not shrunk towards
 white, :data:`.fast_predictor.SHRINK`: better on the panoramas it was fitted on,
 worse on others),
-and the reference ``recursive-fast+true-energy`` (its output with every
+``recursive-fast-lopo`` (every case predicted by the calibration's model fitted
+without that case's panorama, :data:`.fast_predictor.LOPO_FILE`; the shipped
+model where none was fitted: the honest score of a model on panoramas it never
+saw, not a method to ship), and the reference ``recursive-fast+true-energy``
+(its output with every
 clipped region rescaled, per channel, to the truth's mean over it: the fast
 predictor's shapes with perfect energy, so the gap between the two is what
 its energy estimates cost).
@@ -33,12 +37,13 @@ import numpy as np
 from ..bench.suite_uplift import (
     clipped_regions,
     region_means,
+    register_pair_method,
     register_reference_method,
     register_uplift_method,
 )
 from ..evaluation.reference import ReferencePair
 from .calibrate import evaluation_curve
-from .fast_predictor import FastPredictor
+from .fast_predictor import LOPO_FILE, FastPredictor
 from .recursive import uplift_recursive
 
 _FAST = FastPredictor()
@@ -59,6 +64,22 @@ def recursive_fast_unshrunk(ldr: np.ndarray, curve: str) -> np.ndarray:
 
 
 register_uplift_method(METHOD + "-unshrunk", recursive_fast_unshrunk)
+
+
+class LeaveOnePanoramaOut:
+    """Per panorama, the calibration's model fitted without it (else the shipped one)."""
+
+    def __init__(self, path: Path = LOPO_FILE):
+        models = json.loads(Path(path).read_text())["models"] if Path(path).exists() else {}
+        self.predictors = {name: FastPredictor({"model": model})
+                           for name, model in models.items()}
+
+    def __call__(self, pair: ReferencePair) -> np.ndarray:
+        predictor = self.predictors.get(pair.spec.source, _FAST)
+        return uplift_recursive(pair.ldr, predictor, evaluation_curve(pair.curve)).linear
+
+
+register_pair_method(METHOD + "-lopo", LeaveOnePanoramaOut())
 
 
 def with_true_energy(pred: np.ndarray, pair: ReferencePair) -> np.ndarray:
@@ -99,10 +120,11 @@ def contact_sheet(bench_json: Path, output: Path, count: int = 8, seed: int = 0)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..evaluation.reference import make_pair, shared_sources
+    from ..evaluation.reference import make_pair
+    from ..evaluation.shared_panoramas import load_shared
 
     rows = json.loads(Path(bench_json).read_text())["rows"]
-    sources = {s.name: s for s in shared_sources()}
+    sources = {s.name: s for s in load_shared()}
     cases = worst_cases(rows, count)
     fig, axes = plt.subplots(len(cases), 4, figsize=(12, 2.4 * len(cases)), squeeze=False)
     for ax_row, (case, psnr, base) in zip(axes, cases, strict=True):

@@ -1,14 +1,23 @@
 """Calibrate (train) the fast predictor on real HDR panoramas, reproducibly.
 
-    python -m gaslight_usd.uplift.calibrate [--hdri DIR] [--holdout sunset]
-        [--crops 300] [--seed 1000] [-o PARAMS.json]
+    python -m gaslight_usd.uplift.calibrate [--hdri DIR | --panoramas NAME ...]
+        [--crops 600] [--seed 1000] [--clamped-weight 0] [--no-light-weight 1]
+        [--exclude NAME ...] [--cache CROPS.npz] [--no-lopo] [-o PARAMS.json]
+
+Panoramas: both shared folders, named, trusted or not and weighted as
+:data:`gaslight_usd.evaluation.shared_panoramas.PANORAMAS` says (crops that
+hold a clamped source pixel have too dark a truth: weight ``--clamped-weight``;
+panoramas with no light source: ``--no-light-weight``). The reported number is
+leave-one-panorama-out (LOPO): every panorama's trusted crops scored by a
+model fitted without that panorama, pooled per folder and over all; the
+shipped model is fitted on all of them, and the LOPO models are written beside
+it (:data:`.fast_predictor.LOPO_FILE`) for the bench's ``recursive-fast-lopo``.
 
 Pairs come from the evaluation's reference builder
 (:func:`gaslight_usd.evaluation.reference.make_pair`: 256 x 192 perspective
 crops of the shared panoramas, half aimed at the light, metered exposures,
 sRGB / gamma 2.2 / filmic camera curves, 8 bits), with a seed the benchmark
-does not use (the bench uses seed 0). ``studio`` is never used (its lamps are
-clamped flat); the held-out panoramas are only used to report generalisation.
+does not use (the bench uses seed 0).
 
 Loss: the relighting error of the predictor's own rendering rule. The
 relight render (:mod:`gaslight_usd.evaluation.relight`, here at 64 x 64,
@@ -27,16 +36,16 @@ differentiable in the prediction. The model (:class:`.fast_predictor.Mlp`,
 15-H-H-(1 + K + 1), tanh) is first fitted to the regions' true ``log2``
 means (squared error, weighted by sqrt area), then to the mean relight PSNR
 over the crops (plus a log-error term that keeps every region's estimate
-honest when several share one render). Seeded, CPU; it prints train and
-held-out relight PSNR against the baseline, and with ``--lopo`` the
-leave-one-panorama-out PSNR (each training panorama predicted by a model
-fitted without it).
+honest when several share one render), each crop weighted as above. Seeded,
+CPU; it prints the relight PSNR against the baseline on the fitted crops and
+leave-one-panorama-out.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -44,15 +53,20 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import atomic_path, write_text
 from ..evaluation import curves as camera_curves
 from ..evaluation.reference import make_pair, shared_sources
 from ..evaluation.relight import RelightRenderer
+from ..evaluation.shared_panoramas import BY_NAME, NO_LIGHT, TRUSTED, folder_of, load_shared
 from .curves import Curve, lut_curve
 from .fast_predictor import (
     CLIP,
     FEATURES,
+    LEGACY_FEATURES,
+    LOPO_FILE,
     PARAMS_FILE,
     PROFILES,
+    SHRINK,
     fill_clipped,
     peak_cap,
     profile_weights,
@@ -60,13 +74,23 @@ from .fast_predictor import (
     spread,
 )
 
-EXCLUDED = ("studio",)
+DEFAULT_CROPS = 600
+DEFAULT_FEATURES: tuple[str, ...] = LEGACY_FEATURES
+"""The features the shipped model uses. The four later ones of
+:data:`.fast_predictor.FEATURES` (``--features`` with all of them) did not raise the
+leave-one-panorama-out gain over these, so the model keeps the fifteen."""
+DEFAULT_EXCLUDE: tuple[str, ...] = ()
+"""Panoramas never fitted on by default (clamped crops are weighted instead)."""
+DEFAULT_WEIGHTS = {"clamped": 0.0, "no_light": 1.0}
+"""Crop weights by the panorama table (:func:`crop_weights`), chosen by the
+leave-one-panorama-out score."""
 GROUPS = 3
 """Regions rendered separately: the two largest, then all others together."""
-SHRINKS = (0.4, 0.55, 0.7, 0.85)
-"""Shrink factors scored beside the raw model (the predictor uses
-:data:`.fast_predictor.SHRINK`)."""
+SHRINKS = (0.4, 0.55, 0.7, 0.85, 1.0)
+"""Shrink factors scored beside the shipped one (:data:`.fast_predictor.SHRINK`)."""
 RENDER = {"resolution": 64, "spp": 16, "env_height": 128}
+FIT_PIXELS = 512
+"""Relight pixels per crop in the fitting loss (of 64 x 64); scores use them all."""
 
 
 @lru_cache(maxsize=8)
@@ -100,7 +124,14 @@ class CropSet:
     """(C, GROUPS, 3) ring chromaticity of each group (energy-weighted over its regions)"""
     align: np.ndarray
     """(C, P) bool: truth pixels used for exposure alignment"""
+    trusted: np.ndarray
+    """(C,) bool: the crop holds no clamped source pixel (its light truth is good)"""
     names: list[str]
+
+    @property
+    def panoramas(self) -> np.ndarray:
+        """(C,) the panorama of every crop (its name without the index)."""
+        return np.array([n.rsplit("-", 1)[0] for n in self.names])
 
 
 def _render(renderer: RelightRenderer, image: np.ndarray) -> np.ndarray:
@@ -166,20 +197,38 @@ def _crop_inputs(pair, renderer: RelightRenderer) -> tuple | None:
 def collect(sources: list, crops: int, seed: int) -> CropSet:
     """Regions, their truths and the relight renders of ``crops`` pairs (skipping unclipped)."""
     renderer = RelightRenderer(seed=seed, **RENDER)
-    per_crop, names = [], []
+    per_crop, names, trusted = [], [], []
     for i in range(crops):
         pair = make_pair(sources[i % len(sources)], i, seed)
         inputs = _crop_inputs(pair, renderer)
         if inputs is not None:
             per_crop.append(inputs)
             names.append(pair.name)
+            trusted.append(pair.light_truth)
     feats, ys, areas, caps, groups, rt, rb, ru, ring, align = zip(*per_crop, strict=True)
     slots = [c * GROUPS + g for c, g in enumerate(groups)]
     return CropSet(np.concatenate(feats), np.concatenate(ys).astype(np.float32),
                    np.concatenate(areas).astype(np.float32),
                    np.concatenate(caps).astype(np.float32), np.concatenate(slots),
                    np.stack(rt), np.stack(rb), np.stack(ru), np.stack(ring), np.stack(align),
-                   names)
+                   np.asarray(trusted, bool), names)
+
+
+def refresh_features(data: CropSet, sources: list, seed: int) -> CropSet:
+    """``data`` with every region's features recomputed (all of :data:`FEATURES`) from
+    its crop, rebuilt from ``sources`` by name: a cache made before a feature was
+    added stays usable without its renders being made again."""
+    by_name = {s.name: s for s in sources}
+    feats = []
+    for name in data.names:
+        panorama, index = name.rsplit("-", 1)
+        pair = make_pair(by_name[panorama], int(index), seed)
+        curve = evaluation_curve(pair.curve)
+        feats.append(region_features(curve.to_linear(pair.ldr), pair.ldr).features)
+    features = np.concatenate(feats)
+    if len(features) != len(data.log_mean):
+        raise ValueError("the cached crops do not match their sources (region count differs)")
+    return CropSet(features, *(getattr(data, k) for k in list(CropSet.__dataclass_fields__)[1:]))
 
 
 def subset(data: CropSet, crops: np.ndarray) -> CropSet:
@@ -192,7 +241,19 @@ def subset(data: CropSet, crops: np.ndarray) -> CropSet:
     return CropSet(data.features[keep], data.log_mean[keep], data.area[keep],
                    data.log_cap[keep], slot, data.truth[crops], data.base[crops],
                    data.units[crops], data.ring[crops], data.align[crops],
-                   [n for n, c in zip(data.names, crops, strict=True) if c])
+                   data.trusted[crops], [n for n, c in zip(data.names, crops, strict=True) if c])
+
+
+def pixel_subset(data: CropSet, count: int, seed: int) -> CropSet:
+    """``data`` with its relight renders cut to ``count`` pixels (the same, seeded, in
+    every crop): the loss's sample mean; fitting takes P / count times less time."""
+    pixels = data.truth.shape[1]
+    if count <= 0 or count >= pixels:
+        return data
+    keep = np.sort(np.random.default_rng(seed).choice(pixels, count, replace=False))
+    return CropSet(data.features, data.log_mean, data.area, data.log_cap, data.slot,
+                   data.truth[:, keep], data.base[:, keep], data.units[..., keep], data.ring,
+                   data.align[:, keep], data.trusted, data.names)
 
 
 def relight_psnr(data: CropSet, log_mean, mix=None, ring_share=None):
@@ -237,21 +298,33 @@ def relight_psnr(data: CropSet, log_mean, mix=None, ring_share=None):
 
 
 def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
-        iters: int = 400, log_weight: float = 0.3, shape_heads: bool = True) -> dict:
+        iters: int = 400, log_weight: float = 0.3, shape_heads: bool = True,
+        weights: np.ndarray | None = None, pixels: int = FIT_PIXELS,
+        features: tuple[str, ...] = FEATURES) -> dict:
     """Fit the perceptron to ``data``; see the module doc.
 
     ``shape_heads`` False: the mean alone (cones in the ring's colour).
+    ``weights`` (C,): each crop's weight in both losses (default 1; 0 drops it).
+    ``pixels``: relight pixels per crop in the loss (:func:`pixel_subset`; 0: all).
+    ``features``: the names of the columns of ``data.features`` (:data:`FEATURES`) used.
     """
     import torch
 
+    if weights is not None and np.any(np.asarray(weights) <= 0):
+        data, weights = subset(data, np.asarray(weights) > 0), np.asarray(weights)[
+            np.asarray(weights) > 0]
+    data = pixel_subset(data, pixels, seed)
     torch.manual_seed(seed)
     torch.set_num_threads(1)  # small tensors: one thread is 2-3x faster than two here
-    x = data.features
+    x = data.features[:, [FEATURES.index(f) for f in features]]
     mean, std = x.mean(0), x.std(0) + 1e-6
     mean[-1], std[-1] = 0.0, 1.0  # the constant feature stays 1
     xt = torch.tensor((x - mean) / std, dtype=torch.float32)
     yt = torch.tensor(data.log_mean)
-    wt = torch.sqrt(torch.tensor(data.area))
+    crop_w = torch.ones(len(data.names)) if weights is None else torch.tensor(
+        np.asarray(weights, np.float32))
+    crop_w = crop_w / crop_w.mean()
+    wt = torch.sqrt(torch.tensor(data.area)) * crop_w[torch.as_tensor(data.slot // GROUPS)]
     wt = wt / wt.mean()
     k_count = len(PROFILES)
     net = torch.nn.Sequential(torch.nn.Linear(x.shape[1], hidden), torch.nn.Tanh(),
@@ -278,7 +351,7 @@ def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
     for _ in range(iters):
         opt.zero_grad()
         log_mean, mix, share = heads()
-        loss = (-relight_psnr(data, log_mean, mix, share).mean()
+        loss = (-(crop_w * relight_psnr(data, log_mean, mix, share)).mean()
                 + log_weight * torch.mean(wt * (log_mean - yt) ** 2))
         loss.backward()
         opt.step()
@@ -286,38 +359,45 @@ def fit(data: CropSet, seed: int, hidden: int = 12, pre_iters: int = 300,
     with torch.no_grad():
         rmse = float(torch.sqrt(torch.mean((heads()[0] - yt) ** 2)))
     linears = [m for m in net if isinstance(m, torch.nn.Linear)]
-    return {"mean": mean.tolist(), "std": std.tolist(),
+    return {"features": list(features), "mean": mean.tolist(), "std": std.tolist(),
             "layers": [[m.weight.detach().numpy().T.round(6).tolist(),
                         m.bias.detach().numpy().round(6).tolist()] for m in linears],
             "profiles": list(PROFILES), "train_rmse_stops": rmse}
 
 
 def scores(data: CropSet, model_params: dict) -> dict[str, np.ndarray]:
-    """Per-crop relight PSNR of the model (also with its log2 means times each of
-    :data:`SHRINKS`, see :data:`.fast_predictor.SHRINK`), the baseline and the true means."""
+    """Per-crop relight PSNR of the model as shipped (``fast``: its log2 means times
+    :data:`.fast_predictor.SHRINK`), with each factor of :data:`SHRINKS` (``fast xA``),
+    the baseline and the true means."""
     from .fast_predictor import Mlp
 
     log_mean, mix, share = Mlp(model_params).heads(data.features)
     shrunk = {f"fast x{a}": relight_psnr(data, a * log_mean, mix, share).numpy()
               for a in SHRINKS}
-    return {**shrunk, "fast": relight_psnr(data, log_mean, mix, share).numpy(),
+    return {"fast": relight_psnr(data, SHRINK * log_mean, mix, share).numpy(), **shrunk,
             "baseline": relight_psnr(data, np.zeros_like(log_mean)).numpy(),
             "true_means": relight_psnr(data, data.log_mean, mix, share).numpy(),
             "true_means_cone_ring": relight_psnr(data, data.log_mean).numpy()}
 
 
 def summary(label: str, per_crop: dict[str, np.ndarray]) -> dict:
-    """Mean/median of per-crop scores and of the gain over the baseline, printed."""
+    """Mean/median of per-crop scores and of the gains over the baseline, printed.
+
+    ``gain``: the shipped model's (``fast``); ``gains``: the mean gain of every score.
+    """
     out = {name: {"mean": round(float(s.mean()), 2), "median": round(float(np.median(s)), 2)}
            for name, s in per_crop.items()}
     gain = per_crop["fast"] - per_crop["baseline"]
     out["gain"] = {"mean": round(float(gain.mean()), 2),
                    "median": round(float(np.median(gain)), 2),
                    "worst": round(float(gain.min()), 2)}
+    out["gains"] = {name: round(float((s - per_crop["baseline"]).mean()), 2)
+                    for name, s in per_crop.items() if name != "baseline"}
     out["crops"] = len(gain)
-    print(f"{label}: {len(gain)} clipped crops, relight PSNR (64 px) " + ", ".join(
-        f"{k} {v['mean']:.2f}/{v['median']:.2f}" for k, v in out.items() if k != "crops")
-          + " (mean/median dB)")
+    print(f"{label}: {len(gain)} clipped crops, relight PSNR (64 px) mean/median: "
+          + ", ".join(f"{k} {v['mean']:.2f}/{v['median']:.2f}" for k, v in out.items()
+                      if k not in ("crops", "gains"))
+          + "; mean gains: " + ", ".join(f"{k} {v:+.2f}" for k, v in out["gains"].items()))
     return out
 
 
@@ -326,84 +406,158 @@ def report(label: str, data: CropSet, model_params: dict) -> dict:
     return summary(label, scores(data, model_params))
 
 
-def leave_one_out(data: CropSet, seed: int, shape_heads: bool = True) -> dict:
-    """Each panorama of ``data`` scored by a model fitted on the others."""
-    panorama = np.array([n.rsplit("-", 1)[0] for n in data.names])
-    pooled: dict[str, list[np.ndarray]] = {}
-    out = {}
+def crop_weights(data: CropSet, clamped: float = 0.0, no_light: float = 1.0,
+                 exclude: tuple[str, ...] = ()) -> np.ndarray:
+    """(C,) calibration weight of every crop, from :data:`.shared_panoramas.PANORAMAS`.
+
+    A crop that holds a clamped source pixel gets ``clamped`` (its regions' truth
+    is too dark), a crop of a panorama with no light source ``no_light``, a
+    panorama in ``exclude`` 0, the rest 1. Panoramas not in the table (a user
+    folder) count as trusted.
+    """
+    kind = np.array([BY_NAME[n].kind if n in BY_NAME else TRUSTED for n in data.panoramas])
+    w = np.ones(len(data.names))
+    w[kind == NO_LIGHT] = no_light
+    w[~data.trusted] = clamped
+    w[np.isin(data.panoramas, list(exclude))] = 0.0
+    return w
+
+
+def _pooled(label: str, parts: dict[str, dict[str, np.ndarray]]) -> dict:
+    return summary(label, {k: np.concatenate([p[k] for p in parts.values()])
+                           for k in next(iter(parts.values()))})
+
+
+def leave_one_out(data: CropSet, weights: np.ndarray, seed: int, full_model: dict,
+                  shape_heads: bool = True, **fit_options: int
+                  ) -> tuple[dict, dict[str, dict]]:
+    """Every panorama's trusted crops scored by a model fitted without that panorama.
+
+    A panorama that carries no calibration weight is scored by ``full_model``
+    (which never saw it). Returns the scores (per panorama, per folder of
+    :mod:`.shared_panoramas`, pooled) and the models fitted, by panorama.
+    """
+    panorama = data.panoramas
+    per_pano: dict[str, dict[str, np.ndarray]] = {}
+    models: dict[str, dict] = {}
+    out: dict = {}
     for name in sorted(set(panorama)):
-        model = fit(subset(data, panorama != name), seed, shape_heads=shape_heads)
-        per_crop = scores(subset(data, panorama == name), model)
-        out[name] = summary(f"  left out {name}", per_crop)
-        for k, v in per_crop.items():
-            pooled.setdefault(k, []).append(v)
-    out["all"] = summary("leave-one-panorama-out, pooled",
-                         {k: np.concatenate(v) for k, v in pooled.items()})
-    return out
+        judged = (panorama == name) & data.trusted
+        if not judged.any():
+            continue
+        left = panorama == name
+        if np.any(weights[left] > 0):
+            models[name] = fit(data, seed, shape_heads=shape_heads,
+                               weights=np.where(left, 0.0, weights), **fit_options)
+        per_pano[name] = scores(subset(data, judged), models.get(name, full_model))
+        out[name] = summary(f"  left out {name}", per_pano[name])
+    for folder in sorted({folder_of(n) for n in per_pano}):
+        members = {n: v for n, v in per_pano.items() if folder_of(n) == folder}
+        out[f"folder:{folder}"] = _pooled(f"leave-one-panorama-out, {folder}", members)
+    out["all"] = _pooled("leave-one-panorama-out, pooled", per_pano)
+    return out, models
 
 
-def _collect_cached(cache: Path | None, train_src: list, held_src: list,
-                    args: argparse.Namespace) -> tuple[CropSet, CropSet | None]:
-    """Collect both sets, or load them from ``cache`` (written after collecting)."""
+def _rounded(model: dict, digits: int = 4) -> dict:
+    """A LOPO model with its weights rounded (the bench's file stays small)."""
+    def r(v):
+        return [r(x) for x in v] if isinstance(v, list) else (
+            round(v, digits) if isinstance(v, float) else v)
+    return {k: r(v) if k in ("layers", "mean", "std") else v for k, v in model.items()}
+
+
+def _collect_cached(cache: Path | None, sources: list, crops: int, seed: int) -> CropSet:
+    """Collect the crops, or load them from ``cache`` (written after collecting)."""
     if cache is not None and cache.exists():
         with np.load(cache, allow_pickle=False) as z:
-            sets = [CropSet(**{k: z[f"{p}{k}"] for k in CropSet.__dataclass_fields__
-                               if k != "names"}, names=list(z[f"{p}names"]))
-                    if f"{p}truth" in z else None for p in ("train_", "held_")]
-        return sets[0], sets[1]
-    train = collect(train_src, args.crops, args.seed)
-    held = collect(held_src, args.holdout_crops, args.seed) if held_src else None
+            return CropSet(**{k: z[k] for k in CropSet.__dataclass_fields__ if k != "names"},
+                           names=[str(n) for n in z["names"]])
+    data = collect(sources, crops, seed)
     if cache is not None:
-        arrays = {}
-        for p, data in (("train_", train), ("held_", held)):
-            if data is not None:
-                arrays.update({f"{p}{k}": np.asarray(getattr(data, k))
-                               for k in CropSet.__dataclass_fields__})
-        np.savez(cache, **arrays)
-    return train, held
+        with atomic_path(cache) as tmp, open(tmp, "wb") as fh:
+            np.savez(fh, **{k: np.asarray(getattr(data, k))
+                            for k in CropSet.__dataclass_fields__})
+    return data
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--hdri", type=Path, default=None,
-                    help="folder of HDR panoramas (default: the shared data set)")
-    ap.add_argument("--holdout", nargs="*", default=["sunset"])
-    ap.add_argument("--crops", type=int, default=300)
-    ap.add_argument("--holdout-crops", type=int, default=60)
+                    help="folder of HDR panoramas (default: both shared folders, "
+                         "see gaslight_usd.evaluation.shared_panoramas)")
+    ap.add_argument("--panoramas", nargs="*", default=None, metavar="NAME",
+                    help="only these shared panoramas (names as in shared_panoramas)")
+    ap.add_argument("--crops", type=int, default=DEFAULT_CROPS,
+                    help="crops cut, cycling over the panoramas (unclipped ones are skipped)")
     ap.add_argument("--seed", type=int, default=1000)
+    ap.add_argument("--exclude", nargs="*", default=list(DEFAULT_EXCLUDE),
+                    help="panoramas never fitted on (still scored, by a model that never "
+                         "saw them)")
+    ap.add_argument("--clamped-weight", type=float, default=DEFAULT_WEIGHTS["clamped"],
+                    help="weight of crops holding a clamped source pixel")
+    ap.add_argument("--no-light-weight", type=float, default=DEFAULT_WEIGHTS["no_light"],
+                    help="weight of crops of panoramas with no light source")
     ap.add_argument("-o", "--output", type=Path, default=PARAMS_FILE)
+    ap.add_argument("--lopo-output", type=Path, default=LOPO_FILE,
+                    help="where the leave-one-panorama-out models go (the bench's "
+                         "recursive-fast-lopo reads them)")
     ap.add_argument("--cache", type=Path, default=None,
                     help="keep the collected crops in this .npz (reused when it exists)")
+    ap.add_argument("--iters", type=int, nargs=2, default=[300, 400], metavar=("PRE", "RELIGHT"),
+                    help="optimiser steps on the log means, then on the relight loss")
+    ap.add_argument("--features", nargs="*", default=list(DEFAULT_FEATURES), metavar="NAME",
+                    help="region features the model uses (of fast_predictor.FEATURES; "
+                         "'legacy' for the first model's fifteen)")
     ap.add_argument("--mean-only", action="store_true",
                     help="fit the mean alone (cones in the ring's colour, no shape heads)")
-    ap.add_argument("--lopo", action="store_true",
-                    help="also report leave-one-panorama-out scores (one fit per panorama)")
+    ap.add_argument("--no-lopo", action="store_true",
+                    help="skip the leave-one-panorama-out scores (one fit per panorama)")
     args = ap.parse_args(argv)
     if args.seed == 0:
         ap.error("seed 0 makes the benchmark's crops: calibrate on another seed")
     t0 = time.perf_counter()
-    sources = shared_sources(args.hdri)
-    train_src = [s for s in sources if s.name not in EXCLUDED + tuple(args.holdout)]
-    held_src = [s for s in sources if s.name in args.holdout]
-    train, held = _collect_cached(args.cache, train_src, held_src, args)
-    print(f"collected {len(train.names)} crops ({len(train.log_mean)} regions) "
+    sources = shared_sources(args.hdri) if args.hdri else load_shared(args.panoramas)
+    data = _collect_cached(args.cache, sources, args.crops, args.seed)
+    if data.features.shape[1] != len(FEATURES):
+        data = refresh_features(data, sources, args.seed)
+    features = LEGACY_FEATURES if args.features == ["legacy"] else tuple(args.features)
+    unknown = [f for f in features if f not in FEATURES]
+    if unknown or features[-1:] != ("one",):
+        ap.error(f"--features: unknown {unknown} (the list ends with 'one'); "
+                 f"known: {' '.join(FEATURES)}")
+    weights = crop_weights(data, args.clamped_weight, args.no_light_weight,
+                           tuple(args.exclude))
+    print(f"collected {len(data.names)} clipped crops ({len(data.log_mean)} regions) of "
+          f"{len(set(data.panoramas))} panoramas, {int(np.count_nonzero(weights))} fitted on, "
           f"in {time.perf_counter() - t0:.0f} s")
-    model = fit(train, args.seed, shape_heads=not args.mean_only)
-    results = {"train": report("train", train, model)}
-    if held is not None:
-        results["holdout"] = report("held out " + "+".join(args.holdout), held, model)
-    if args.lopo:
-        results["leave_one_panorama_out"] = leave_one_out(train, args.seed, not args.mean_only)
-    params = {"features": list(FEATURES), "model": model,
-              "calibration": {"command": "python -m gaslight_usd.uplift.calibrate "
-                              f"--crops {args.crops} --seed {args.seed} --holdout "
-                              + " ".join(args.holdout) + (" --mean-only" if args.mean_only else "")
-                              + (" --lopo" if args.lopo else ""),
-                              "panoramas": [s.name for s in train_src],
-                              "holdout": args.holdout, "regions": int(len(train.log_mean)),
+    shape_heads = not args.mean_only
+    steps = {"pre_iters": args.iters[0], "iters": args.iters[1], "features": features}
+    model = fit(data, args.seed, shape_heads=shape_heads, weights=weights, **steps)
+    results = {"fitted": report("fitted crops", subset(data, weights > 0), model)}
+    given = list(sys.argv[1:] if argv is None else argv)
+    if "--cache" in given:  # a cache only saves time: the numbers do not depend on it
+        at = given.index("--cache")
+        del given[at:at + 2]
+    command = " ".join(["python -m gaslight_usd.uplift.calibrate", *given])
+    if not args.no_lopo:
+        lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads, **steps)
+        models = {name: _rounded(m) for name, m in models.items()}
+        results["leave_one_panorama_out"] = lopo
+        write_text(args.lopo_output, json.dumps(
+            {"command": command, "features": list(features), "models": models},
+            separators=(",", ":")))
+    fitted = sorted(set(data.panoramas[weights > 0]))
+    params = {"features": list(features), "model": model,
+              "calibration": {"command": command, "crops": args.crops, "seed": args.seed,
+                              "panoramas": fitted,
+                              "weights": {"clamped": args.clamped_weight,
+                                          "no_light": args.no_light_weight,
+                                          "excluded": list(args.exclude)},
+                              "regions": int(len(data.log_mean[
+                                  (weights > 0)[data.slot // GROUPS]])),
                               "relight_psnr_64px": results,
                               "seconds": round(time.perf_counter() - t0)}}
-    args.output.write_text(json.dumps(params, separators=(",", ":")))
+    write_text(args.output, json.dumps(params, separators=(",", ":")))
     print(f"-> {args.output} ({time.perf_counter() - t0:.0f} s)")
     return 0
 

@@ -19,7 +19,14 @@ photo's white, so 0 means "just white") from region features:
 * colour: the ring's saturation and how many of the region's pixels clip in
   all three channels;
 * context: the photo's median luminance and clipped fraction (how far the
-  photo is over-exposed).
+  photo is over-exposed), the 99th percentile of its unclipped luminance and
+  the share of unclipped pixels above half white (a photo metered for a dark
+  room shows its bright surroundings near white), the region's share of all
+  clipped pixels and its height in the frame.
+
+A model names the features it was fitted on (its parameters' ``features``;
+the first model's fifteen, :data:`LEGACY_FEATURES`, when it does not), so a
+feature added later never breaks an older parameter file.
 
 Lengths are in units of ``sqrt(H W) / 256`` pixels, so the model does not
 depend on resolution. The calibration fits the relighting error itself (an
@@ -78,28 +85,32 @@ PROFILES = (1.0, 3.0, 12.0)
 SHRINK = 0.7
 """Factor on every region's predicted ``log2`` mean (towards "just white") at use.
 
-The perceptron is fitted on 6 panoramas; on a panorama it never saw, its full
-estimate overshoots often enough to cost more than it gains. Leave-one-panorama-out
-(``python -m gaslight_usd.uplift.calibrate --lopo``: 281 crops, 64 px relight,
-every factor of ``calibrate.SHRINKS`` scored) gives mean gains
-+0.78 / +1.07 / +1.29 / +1.37 / +1.25 dB at 1.0 / 0.85 / 0.7 / 0.55 / 0.4, worst
-crops -18.7 / -14.2 / -8.6 / -4.3 / -1.2 dB; on the panoramas it was fitted on the
-gain falls (+4.9 -> +3.1 dB at 0.7, +2.2 at 0.55). 0.7 keeps most of the unseen gain
-and more of the seen one. On the uplift bench (200 crops, mostly of the fitting
-panoramas) the mean gain is +2.16 dB against +3.12 unshrunk (``recursive-fast-unshrunk``);
-on its sunset crops (never fitted) +0.56 against +0.35, on studio (excluded: its
-lamps are clamped) +0.99 against +1.38."""
+On a panorama it never saw, the perceptron's full estimate overshoots often
+enough to cost more than it gains (an overestimated "sun" in a near-white sky
+costs far more relight PSNR than an underestimate). The factor is chosen by the
+leave-one-panorama-out gain over all the calibration panoramas
+(``python -m gaslight_usd.uplift.calibrate`` scores every factor of
+``calibrate.SHRINKS``), and checked on the uplift bench, where
+``recursive-fast-unshrunk`` is charted beside it and ``recursive-fast-lopo``
+scores each panorama with the model fitted without it
+(``gaslight2usd bench --suite uplift --count 200``)."""
 PARTIAL_LIMIT = 1.1
 """A clipped channel beside unclipped ones is at most this times what they imply
 (the median truth on calibration crops, seed 1000, is 1.06-1.16 times that)."""
 PARAMS_FILE = Path(__file__).with_name("fast_predictor_params.json")
+LOPO_FILE = Path(__file__).with_name("fast_predictor_lopo.json")
+"""The calibration's leave-one-panorama-out models (the bench scores each panorama's
+crops with the model fitted without it: ``recursive-fast-lopo``)."""
 RING_EDGES = (1.5, 4.0, 10.0, 30.0)
 """Outer radii of the glow rings in units of ``sqrt(H W) / 256`` pixels."""
 RING_MIN_PX = (1.5, 3.0, 6.0, 12.0)
 """Smallest outer radii in pixels (small photos still get one pixel per ring)."""
-FEATURES = ("log_area", "log_max_depth", "log_compact", "log_ring0", "log_ring1",
-            "log_ring2", "log_ring3", "glow_slope", "white0", "white1", "ring_sat",
-            "all_clipped", "log_median", "clipped_frac", "one")
+LEGACY_FEATURES = ("log_area", "log_max_depth", "log_compact", "log_ring0", "log_ring1",
+                   "log_ring2", "log_ring3", "glow_slope", "white0", "white1", "ring_sat",
+                   "all_clipped", "log_median", "clipped_frac", "one")
+"""The features of a model whose parameters do not name theirs."""
+FEATURES = LEGACY_FEATURES[:-1] + ("area_share", "row", "log_p99", "bright_frac", "one")
+"""Every feature :func:`region_features` computes; a model uses those it names."""
 LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
@@ -146,7 +157,11 @@ def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
     if not full_mask.any():
         return None
     unit = _unit(full_mask.shape)
-    median = float(np.median(np.clip(linear, 0.0, 1.0) @ LUM))
+    full_lum = np.clip(linear, 0.0, 1.0) @ LUM
+    median = float(np.median(full_lum))
+    unclipped_lum = full_lum[~full_mask]
+    p99 = float(np.percentile(unclipped_lum, 99.0)) if unclipped_lum.size else 1.0
+    bright = float(np.mean(unclipped_lum >= 0.5)) if unclipped_lum.size else 0.0
     radii = [max(edge * unit, min_px) for edge, min_px in zip(RING_EDGES, RING_MIN_PX,
                                                               strict=True)]
     # Everything below happens in the window around the clipped pixels (the rings
@@ -157,6 +172,8 @@ def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
     depth = ndimage.distance_transform_edt(mask).astype(np.float32)
     lab = labels[mask]
     area = np.bincount(lab, minlength=count + 1)[1:].astype(np.float64)
+    rows_mean = np.bincount(lab, weights=np.nonzero(mask)[0],
+                            minlength=count + 1)[1:] / area
     max_depth = np.zeros(count + 1)
     np.maximum.at(max_depth, lab, depth[mask])
     max_depth = max_depth[1:]
@@ -203,6 +220,10 @@ def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
         all_clipped,
         np.full(count, np.log2(max(median, 1e-4))),
         np.full(count, float(full_mask.mean())),
+        area / area.sum(),
+        (rows_mean + win[0].start) / full_mask.shape[0] - 0.5,
+        np.full(count, np.log2(max(p99, 1e-4))),
+        np.full(count, bright),
         np.ones(count),
     ]
     feats = np.stack(columns, axis=-1).astype(np.float32)
@@ -218,13 +239,18 @@ class Mlp:
     """A tiny perceptron evaluated in numpy: standardise, tanh layers, softplus out."""
 
     def __init__(self, params: dict):
+        self.features = tuple(params.get("features", LEGACY_FEATURES))
+        self.columns = np.array([FEATURES.index(f) for f in self.features])
         self.mean = np.asarray(params["mean"], np.float32)
         self.std = np.asarray(params["std"], np.float32)
         self.layers = [(np.asarray(w, np.float32), np.asarray(b, np.float32))
                        for w, b in params["layers"]]
 
     def raw(self, x: np.ndarray) -> np.ndarray:
-        """The last layer's outputs ``(R, n_out)``."""
+        """The last layer's outputs ``(R, n_out)`` from every feature ``(R, len(FEATURES))``
+        (or from the model's own columns ``(R, len(self.features))``)."""
+        if x.shape[1] != len(self.features):
+            x = x[:, self.columns]
         h = (x - self.mean) / self.std
         for i, (w, b) in enumerate(self.layers):
             h = h @ w + b
