@@ -54,6 +54,9 @@ LIGHT_VIEW_SIZE = 24
 SAMPLE_POINTS = 120
 MAX_LIGHTS = 6
 LOG2_K_RANGE = (-6.0, 10.0)
+MIN_DIRECT_SHARE = 0.03
+"""A light that gives the sampled surfaces less than this share of their light (median,
+as fitted) cannot be weighed by them."""
 
 
 @dataclass
@@ -304,16 +307,22 @@ def infer_light_power(scene: SplatScene, cameras: list[PinholeCamera],
     out.sh = scene.sh.copy()
     for j, light in enumerate(lights):
         lit_share = float(np.median(irr[:, 1 + j] / np.maximum(irr.sum(1), 1e-12)))
+        light.details.update({"inferred_log2_factor": round(float(best[j]), 3),
+                              "median_direct_share": round(lit_share, 3),
+                              "surface_points": int(len(radiance))})
+        at_bound = not LOG2_K_RANGE[0] < best[j] < LOG2_K_RANGE[1]
+        if at_bound or lit_share < MIN_DIRECT_SHARE:
+            # the surfaces barely see this light (or the search ran off its range):
+            # its power is not identifiable from them; the fill stands
+            light.details["note"] = "lights too little of the measured surfaces to infer"
+            continue
         sigma_inf = max(float(spread[j]), 0.1)
         w_inf, w_pred = 1 / sigma_inf ** 2, 1 / PREDICTOR_SIGMA_STOPS ** 2
         log2_k = (w_inf * best[j]) / (w_inf + w_pred)
         light.factor = float(2.0 ** log2_k)
         light.uncertainty_stops = float((w_inf + w_pred) ** -0.5)
         light.source = "inferred" if w_inf > 4 * w_pred else "fused"
-        light.details.update({"inferred_log2_factor": round(float(best[j]), 3),
-                              "inferred_sigma_stops": round(sigma_inf, 3),
-                              "median_direct_share": round(lit_share, 3),
-                              "surface_points": int(len(radiance))})
+        light.details["inferred_sigma_stops"] = round(sigma_inf, 3)
         out.sh[light.splats] = scaled_sh(scene.sh[light.splats], light.factor)
     return out, lights
 

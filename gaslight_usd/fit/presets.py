@@ -40,9 +40,11 @@ class FitConfig:
     log_weight: float = 0.0
     clip_bounds: bool = True
     """Fit clipped photo pixels as lower bounds (:func:`.losses.bounded_l1`), not as targets."""
-    infer_power: bool = True
+    infer_power: bool = False
     """After the fit, rescale each clipped light by the power its lit surfaces imply
-    (:mod:`.power`), fused with the uplift's fill by their uncertainties."""
+    (:mod:`.power`), fused with the uplift's fill by their uncertainties. Off by default:
+    on the chain bench's rooms (``gaslight2usd bench --suite chain``) the clipped-light
+    clusters it weighs are not yet where the lights are (see the issue notes)."""
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
