@@ -67,7 +67,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
     p.add_argument("--at", action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
-                        "default: the centre of the splats)")
+                        "default: where the cameras stood, at their median height, moved "
+                        "to free space)")
     p.add_argument("--as", dest="export_as", metavar="LIST",
                    help="USD forms: particlefield,instancer,rig (default: all three)")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
