@@ -29,9 +29,11 @@ MAX_VIEWPOINTS = 1
 centres spread through the list) see round occluders, but each sees through the walls'
 depth smear at grazing angles: on the example's ``fast`` fit, 16 of them let 9 emitters
 more than 5 cm outside the room through where the median point lets 5."""
-BOX_QUANTILE = 0.02
-"""Inside also means inside the box of the opaque splats' 2-98 percentiles per axis:
-a lone floater far behind the floor can be alone in its direction bins."""
+BOX_QUANTILE = 0.01
+"""Inside also means inside the box of the opaque splats' 1-99 percentiles per axis,
+widened by :data:`BOX_PAD` of its size each side: a lone floater far behind the floor
+can be alone in its direction bins, while a window is the set's extreme on its axis."""
+BOX_PAD = 0.1
 DEPTH_SLACK = 0.03
 """A point may lie this share of the surface's distance beyond it and still be inside."""
 OPAQUE = 0.1
@@ -119,8 +121,12 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None) -> Ca
         source += ", seen from their median point"
     views = [scene_view(scene, v, mask=opaque) for v in viewpoints]
     pos = scene.positions[opaque] if opaque.sum() >= 10 else scene.positions
-    box = (np.quantile(pos, [BOX_QUANTILE, 1 - BOX_QUANTILE], axis=0) if len(pos)
-           else np.array([[-np.inf] * 3, [np.inf] * 3]))
+    if len(pos):
+        box = np.quantile(pos, [BOX_QUANTILE, 1 - BOX_QUANTILE], axis=0).astype(np.float64)
+        pad = BOX_PAD * (box[1] - box[0])
+        box = np.stack([box[0] - pad, box[1] + pad])
+    else:
+        box = np.array([[-np.inf] * 3, [np.inf] * 3])
     return CaptureSpace(viewpoints, views, box, source)
 
 

@@ -130,6 +130,7 @@ def test_stage_metadata_colour_space_provenance_and_variants(tmp_path):
     assert list(root.GetAttribute("gaslight:sourceImages").Get()) == ["a.jpg", "b.jpg"]
     vset = root.GetVariantSet("lighting")
     assert sorted(vset.GetVariantNames()) == ["instancer", "particlefield"]
+    # no rig written: the first form written is the default
     assert vset.GetVariantSelection() == "particlefield"
     vset.SetVariantSelection("instancer")
     inst = stage.GetPrimAtPath("/Scene/Emitters/Instancer")
@@ -220,7 +221,10 @@ def test_rig_lights_and_dome(tmp_path):
     for direction, order in (([1.0, 0.3, 0.0], [0, 1, 2]), ([-0.4, 0.8, -0.6], [2, 1, 0])):
         lamp = 3 * np.array(direction) / np.linalg.norm(direction)
         nearest = int(np.argmin(np.linalg.norm(pos - lamp, axis=1)))
-        assert np.linalg.norm(pos[nearest] - lamp) < 0.5
+        radius = UsdLux.SphereLight(lights[nearest]).GetRadiusAttr().Get()
+        assert np.linalg.norm(pos[nearest] - lamp) < 0.5 + radius
+        # inside the set: the whole sphere within the walls (radius 3, splats 0.15 wide)
+        assert np.linalg.norm(pos[nearest]) + radius <= 3.0 + 0.15
         colour = np.asarray(UsdLux.SphereLight(lights[nearest]).GetColorAttr().Get())
         assert colour[order[0]] >= colour[order[1]] >= colour[order[2]]
 

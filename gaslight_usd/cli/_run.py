@@ -27,6 +27,7 @@ command skips the stages that finished with the same inputs and options.
 
 examples:
   gaslight2usd run examples/room/photos -o out
+  gaslight2usd run photos -o out --camera-height 1.6
   gaslight2usd run examples/room/photos --poses examples/room/sparse -o out --preset balanced
   gaslight2usd run splats.ply -o out --to usd,hdri --at 0,1.5,0
 """
@@ -55,6 +56,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--poses", type=Path, metavar="SPARSE_DIR|transforms.json",
                    help="poses to use instead of solving them (the same as giving them as "
                         "an INPUT; must be a COLMAP model or transforms.json)")
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument("--camera-height", type=float, metavar="METRES",
+                       help="SfM poses: the photos' median height above the floor, for "
+                            "metres (without a scale the unit is unknown)")
+    scale.add_argument("--scale", type=float, metavar="FACTOR",
+                       help="SfM poses: metres per SfM unit")
+    scale.add_argument("--scale-from", metavar="IMG_A,IMG_B,METRES",
+                       help="SfM poses: known distance between two photos' camera centres")
+    p.add_argument("--default-variant", choices=["particlefield", "instancer", "rig"],
+                   metavar="FORM", help="the lighting variant scene.usda selects (default rig)")
     p.add_argument("--method", choices=["bracket", "recursive", "linear"],
                    help="HDR uplift method (default: bracket when brackets are present, "
                         "else recursive)")
@@ -101,9 +112,11 @@ def run(args: argparse.Namespace) -> int:
         choose=choose,
         options=step_options({
             "uplift": {"predictor": args.predictor},
+            "poses": {"camera_height": args.camera_height, "scale": args.scale,
+                      "scale_from": args.scale_from},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
                     "seed": args.seed, "refine_poses": args.refine_poses or None},
-            "export": {"as": args.export_as},
+            "export": {"as": args.export_as, "default_variant": args.default_variant},
             "hdri": {"at": args.at, "device": args.device},
         }),
         settings={"ocio_config": args.ocio_config, "input_space": args.input_space,
