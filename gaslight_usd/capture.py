@@ -8,8 +8,9 @@ belong inside the set, so the set is taken as the union of the free space each
 camera position sees: from every viewpoint (camera centres recorded in the
 PLY's ``cameras`` metadata, at most :data:`MAX_VIEWPOINTS` of them; without
 them the splats' median point) the visible surface is found per direction
-(:mod:`gaslight_usd.surroundings`), and a point is inside when some viewpoint
-sees it no farther than that surface plus a small reach. Splats outside are
+(:mod:`gaslight_usd.surroundings`; surfaces are the opaque splats no brighter
+than the photos' white, so lights hide nothing), and a point is inside when some
+viewpoint sees it no farther than that surface plus a small reach. Splats outside are
 *backdrop*: they may show in panoramas, but they are never lights.
 """
 
@@ -119,7 +120,12 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None) -> Ca
         viewpoints = (np.median(viewpoints, axis=0)[None] if MAX_VIEWPOINTS == 1
                       else _pick(viewpoints, MAX_VIEWPOINTS))
         source += ", seen from their median point"
-    views = [scene_view(scene, v, mask=opaque) for v in viewpoints]
+    # Surfaces are the dim splats: a lamp does not hide what lies just behind it, and a
+    # window's own depth smear does not push the wall out.
+    white = float(scene.metadata.get("exposure_scale", 1.0) or 1.0)
+    surface = opaque & (scene.base_colours.max(axis=1) <= white)
+    views = [scene_view(scene, v, mask=surface if surface.sum() >= 10 else opaque)
+             for v in viewpoints]
     pos = scene.positions[opaque] if opaque.sum() >= 10 else scene.positions
     if len(pos):
         box = np.quantile(pos, [BOX_QUANTILE, 1 - BOX_QUANTILE], axis=0).astype(np.float64)

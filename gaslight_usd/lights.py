@@ -21,9 +21,9 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    albedo <= RHO_MAX lit by this scene can be brighter. The cluster's own
    splats, and dimmer splats around it (the surface it lies on only hides the
    light that lights it), are left out of ``E_max``. Light from sources brighter
-   than the photos' white was predicted, not measured, so it counts
-   ``2 ** power_uncertainty_stops`` times (it may be that much brighter): a
-   wall lit by an underestimated lamp is still explained by that lamp.
+   than the photos' white (and than the cluster) was predicted, not measured,
+   so it counts ``2 ** power_uncertainty_stops`` times (it may be that much
+   brighter): a wall lit by an underestimated lamp is still explained by it.
 4. Emitter clusters closer than their own sizes are **grouped into lights**:
    position (power-weighted centre), size (principal half-extents), power
    (radiance x projected area, summed), colour, and where the power came from.
@@ -231,7 +231,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     power = np.bincount(labels, radiance[candidates] * area[candidates], minlength=n_clusters)
     order = np.argsort(-power)[:MAX_CLUSTERS]
     order = order[power[order] >= MIN_POWER_SHARE * power[order[0]]]
-    boosted = colours * np.where(radiance > white, 2.0**uncertainty, 1.0)[:, None]
+    boost = 2.0**uncertainty
     not_backdrop = ~backdrop
     emitting: list[np.ndarray] = []
     tests: list[dict[str, float]] = []
@@ -246,7 +246,10 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
         near = np.linalg.norm(scene.positions - centre, axis=1) <= size
         sources = not_backdrop & ~(near & (radiance <= level))
         sources[idx] = False
-        e_max = _max_irradiance(scene, sources, centre, boosted, sigma)
+        # only sources brighter than the cluster may be that much brighter: its peers
+        # (the rest of the same lamp) do not explain it by their own uncertainty
+        gain = np.where(radiance > max(white, level), boost, 1.0)
+        e_max = _max_irradiance(scene, sources, centre, colours * gain[:, None], sigma)
         limit = RHO_MAX * e_max / np.pi
         if level > limit:
             emitting.append(idx)
