@@ -52,8 +52,10 @@ RHO_MAX = 0.9
 """Brightest plausible diffuse albedo (fresh snow, the whitest paints: 0.8-0.9)."""
 LINK_SIGMAS = 1.0
 """Candidates whose centres are closer than this many (summed) footprints touch."""
-MAX_CLUSTERS = 48
-"""Clusters tested, brightest power first; fainter ones (rarely more) are not lights."""
+MAX_CLUSTERS = 96
+"""Clusters tested, highest mean radiance first (a lamp is small but bright: ordered by
+power, the example's lamp ranked below 48 window and wall fragments); the rest are not
+lights."""
 MIN_POWER_SHARE = 1e-3
 """Clusters with less than this share of the brightest cluster's power are not lights."""
 POWER_UNCERTAINTY_STOPS = {"measured": 0.25, "predicted": 3.0, "inferred": 4.0}
@@ -229,8 +231,10 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                          LINK_SIGMAS * sigma[candidates])
     n_clusters = int(labels.max()) + 1
     power = np.bincount(labels, radiance[candidates] * area[candidates], minlength=n_clusters)
-    order = np.argsort(-power)[:MAX_CLUSTERS]
-    order = order[power[order] >= MIN_POWER_SHARE * power[order[0]]]
+    areas = np.bincount(labels, area[candidates], minlength=n_clusters)
+    level_of = power / np.maximum(areas, 1e-30)
+    order = np.argsort(-level_of)
+    order = order[power[order] >= MIN_POWER_SHARE * power.max()][:MAX_CLUSTERS]
     boost = 2.0**uncertainty
     not_backdrop = ~backdrop
     emitting: list[np.ndarray] = []

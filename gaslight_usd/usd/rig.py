@@ -10,7 +10,9 @@
 - The ``DomeLight`` (OpenEXR lat-long convention, +Y pole: the original
   DomeLight schema) holds the panorama of every *other* splat rendered at the
   probe (default: :func:`gaslight_usd.probe.default_probe`), so lamps are not
-  counted twice.
+  counted twice. ``DomeShell`` carries the same texture on an inward emissive
+  sphere round the set, for Blender, which drops a DomeLight when importing
+  into a scene without a World.
 - Each light's power is measured, not guessed: the emitters' share of the
   probe's panorama (full render minus the dome's) is split by direction among
   the lights, giving each light's irradiance at the probe; radiant
@@ -181,6 +183,84 @@ def _downsample(pano: np.ndarray, width: int) -> np.ndarray:
     return pano[: (h // f) * f, : width * f].reshape(h // f, f, width, f, 3).mean((1, 3))
 
 
+SHELL_ROWS, SHELL_COLUMNS = 32, 64
+"""The dome shell's latitude and longitude segments (its texture carries the detail)."""
+
+
+def dome_shell_mesh(rows: int = SHELL_ROWS, columns: int = SHELL_COLUMNS
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A unit sphere for a lat-long texture, faces turned inwards.
+
+    Returns points (P, 3), face vertex counts (F,), face vertex indices and
+    texture coordinates (P, 2) per vertex: ``s`` runs with the panorama's
+    columns (s = 0 at longitude +pi, the -Z side, through +X at 0.25, +Z at 0.5),
+    ``t`` up (t = 1 at +Y), the OpenEXR lat-long convention of the dome EXR.
+    The seam column is doubled so ``s`` does not wrap inside a face.
+    """
+    s = np.linspace(0.0, 1.0, columns + 1)
+    t = np.linspace(0.0, 1.0, rows + 1)
+    ss, tt = np.meshgrid(s, t)  # (rows + 1, columns + 1), t = 0 at the bottom
+    lon = 2.0 * np.pi * (0.5 - ss)
+    lat = np.pi * (tt - 0.5)
+    points = np.stack([np.sin(lon) * np.cos(lat), np.sin(lat), np.cos(lon) * np.cos(lat)], -1)
+    idx = np.arange((rows + 1) * (columns + 1)).reshape(rows + 1, columns + 1)
+    a, b = idx[:-1, :-1], idx[:-1, 1:]
+    c, d = idx[1:, 1:], idx[1:, :-1]
+    # a (bottom-left), b (bottom-right), c (top-right), d (top-left) in (s, t): seen from
+    # inside the sphere a -> b -> c -> d runs counter-clockwise, so normals face inwards
+    quads = np.stack([a, b, c, d], -1).reshape(-1, 4)
+    return (points.reshape(-1, 3), np.full(len(quads), 4, np.int32),
+            quads.reshape(-1).astype(np.int32), np.stack([ss, tt], -1).reshape(-1, 2))
+
+
+def _define_dome_shell(stage: Usd.Stage, path: Sdf.Path, dome_name: str,
+                       centre: np.ndarray, radius: float) -> None:
+    """An emissive inward sphere textured with the dome, round the set.
+
+    Blender turns a DomeLight into its world only when the scene already has
+    one, so into an empty scene the dome is lost; it does import meshes with
+    UsdPreviewSurface textures (not ``proxy`` purpose ones: off by default in
+    Blender 5), so this shell brings the dome's light along. In a path tracer the
+    shell hides the DomeLight behind it (black diffuse, emitting the dome), so
+    the environment is counted once either way; deactivate ``DomeShell`` to
+    light with the DomeLight alone.
+    """
+    from pxr import UsdGeom, UsdShade, Vt
+
+    points, counts, indices, st = dome_shell_mesh()
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((points * radius).astype(np.float32)))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(indices))
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateDoubleSidedAttr(False)
+    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-radius, -radius, -radius),
+                                         Gf.Vec3f(radius, radius, radius)]))
+    mesh.AddTranslateOp().Set(Gf.Vec3d(*centre))
+    primvar = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+        "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
+    primvar.Set(Vt.Vec2fArray.FromNumpy(st.astype(np.float32)))
+    material = UsdShade.Material.Define(stage, path.AppendChild("Look"))
+    surface = UsdShade.Shader.Define(stage, material.GetPath().AppendChild("Surface"))
+    surface.CreateIdAttr("UsdPreviewSurface")
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0, 0, 0))
+    surface.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(1.0)
+    reader = UsdShade.Shader.Define(stage, material.GetPath().AppendChild("St"))
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
+    texture = UsdShade.Shader.Define(stage, material.GetPath().AppendChild("Dome"))
+    texture.CreateIdAttr("UsdUVTexture")
+    texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{dome_name}"))
+    texture.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
+    texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(
+        reader.ConnectableAPI(), "result")
+    texture.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+    surface.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(
+        texture.ConnectableAPI(), "rgb")
+    material.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+
+
 def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
               dome_name: str, probe=None, width: int = 1024,
               tolerance: float = 0.05, threshold: float | None = None,
@@ -228,6 +308,10 @@ def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
     dome.CreateIntensityAttr(1.0)
     dome.CreateColorAttr(Gf.Vec3f(1.0, 1.0, 1.0))
     dome.GetPrim().SetCustomDataByKey("gaslight:probePosition", Gf.Vec3d(*probe))
+    lo, hi = search.space.box
+    reach = float(np.linalg.norm(np.maximum(np.abs(lo - probe), np.abs(hi - probe))))
+    shell_radius = 2.0 * reach if np.isfinite(reach) and reach > 0 else 100.0
+    _define_dome_shell(stage, root.AppendChild("DomeShell"), dome_name, probe, shell_radius)
     count = 0 if lights is None else len(lights["radius"])
     for i in range(count):
         rad = lights["radiance"][i]
