@@ -11,7 +11,7 @@ from plyfile import PlyData, PlyElement
 from pxr import Usd, UsdGeom, UsdLux, UsdShade, UsdVol
 
 from gaslight_usd.cli.main import main
-from gaslight_usd.ply import read_ply
+from gaslight_usd.ply import read_ply, write_ply
 from gaslight_usd.splats import SH_C0, SplatScene
 from gaslight_usd.usd.palette import fit_palette
 from gaslight_usd.usd.particlefield import bytes_per_splat, chunk_ranges, read_particle_field
@@ -264,3 +264,26 @@ def test_frame_record_from_poses_sets_up_axis_and_units():
     unscaled = StageFrame.from_metadata({"frame": {"up_axis": "Y", "meters_per_unit": None}})
     assert unscaled.up_axis == "Y"
     assert unscaled.assumed == ["units unknown, metersPerUnit assumed 1.0"]
+
+
+def test_instancer_says_when_its_palette_misses_the_tolerance(tmp_path, capsys):
+    """Issue 24 item 6: 64 colours cannot hold 2000 random emitter colours within 10 %."""
+    rng = np.random.default_rng(4)
+    n = 2000
+    colours = np.exp(rng.uniform(0.5, 7.0, (n, 3)))
+    scene = SplatScene.from_activated(rng.normal(size=(n, 3)), colours, np.full((n, 3), 0.05),
+                                      np.full(n, 0.9), metadata={"meters_per_unit": 1.0})
+    report = export_usd(scene, tmp_path / "scene.usda",
+                        ExportOptions(variants=("instancer",), emit_threshold=1.0))
+    inst = report.metrics["instancer"]
+    assert inst["palette_size"] == 64 and inst["relative_error_p95"] > 0.10
+    assert inst["palette_tolerance_met"] is False
+    assert "misses its tolerance" in inst["warning"] and "64 colours" in inst["warning"]
+    ply = write_ply(tmp_path / "many.ply", scene)
+    assert main(["export", str(ply), "-o", str(tmp_path / "cli.usda"), "--as", "instancer",
+                 "--emit-threshold", "1"]) == 0
+    assert "misses its tolerance" in capsys.readouterr().out
+    # a palette that meets it says so
+    ok = export_usd(lamp_scene(), tmp_path / "ok.usda", ExportOptions(variants=("instancer",)))
+    assert ok.metrics["instancer"]["palette_tolerance_met"] is True
+    assert "warning" not in ok.metrics["instancer"]
