@@ -287,3 +287,28 @@ def test_instancer_says_when_its_palette_misses_the_tolerance(tmp_path, capsys):
     ok = export_usd(lamp_scene(), tmp_path / "ok.usda", ExportOptions(variants=("instancer",)))
     assert ok.metrics["instancer"]["palette_tolerance_met"] is True
     assert "warning" not in ok.metrics["instancer"]
+
+
+def test_unknown_sfm_units_are_stated_in_the_usd(tmp_path):
+    """SfM poses without a scale: the stage says the unit is unknown and how to give one."""
+    from gaslight_usd.converters.fit_splats import length_unit
+
+    from gaslight_usd.frame import UNKNOWN_UNITS_HINT
+
+    frame = {"frame_source": "sfm", "up_axis": "Y", "meters_per_unit": None,
+             "units": UNKNOWN_UNITS_HINT}
+    assert "--camera-height" in length_unit(frame)
+    assert length_unit({**frame, "meters_per_unit": 1.0}) == "metres"
+    scene = lamp_scene(n=50)
+    scene.metadata = {"frame": frame, "length_unit": length_unit(frame)}
+    export_usd(scene, tmp_path / "scene.usda", ExportOptions(variants=("particlefield",)))
+    stage = Usd.Stage.Open(str(tmp_path / "scene.usda"))
+    data = stage.GetRootLayer().customLayerData
+    assert data["gaslight:unitsKnown"] is False
+    assert data["gaslight:units"].startswith("unknown") and "--camera-height" in data[
+        "gaslight:units"]
+    scene.metadata = {"frame": {**frame, "meters_per_unit": 1.0}}
+    export_usd(scene, tmp_path / "m.usda", ExportOptions(variants=("particlefield",)))
+    stage = Usd.Stage.Open(str(tmp_path / "m.usda"))
+    data = stage.GetRootLayer().customLayerData
+    assert data["gaslight:unitsKnown"] is True and data["gaslight:units"] == "metres"

@@ -83,5 +83,5 @@ def run(args: argparse.Namespace) -> int:
     probes = result.metadata["probes"]
     text = "\n".join(f"probe at {tuple(p['position'])} ({p['chosen']}): "
                      + ", ".join(p["files"]) for p in probes)
-    emit(args, {**result.metadata, **result.counts}, text)
+    emit(args, {**result.counts, **result.metadata}, text)  # the probe list, not its count
     return 0
