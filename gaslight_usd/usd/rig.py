@@ -108,17 +108,19 @@ def inside_position(space, position: np.ndarray, radius: float) -> np.ndarray:
 
     Clipped into the space's percentile box (inset by the radius where the box is
     wide enough), then pulled towards the first viewpoint until the sphere ends
-    before the visible surface in its direction.
+    before the visible surface in its direction and before the light's own
+    centre (a window or a wall lamp is itself the set's surface there).
     """
     lo, hi = space.box
     inset = np.minimum(radius, (hi - lo) / 4.0)
     p = np.clip(np.asarray(position, np.float64), lo + inset, hi - inset)
     view = space.views[0]
     b, r = view.bin_of(p[None])
-    depth = float(view.depth[b[0]])
-    if np.isfinite(depth) and r[0] + radius > depth and r[0] > 0:
+    # the light's own centre bounds it too: a window is the set's surface there
+    limit = min(float(view.depth[b[0]]), float(r[0]))
+    if r[0] + radius > limit and r[0] > 0:
         u = (p - view.point) / r[0]
-        p = view.point + u * max(depth - radius, 0.5 * depth)
+        p = view.point + u * max(limit - radius, 0.5 * limit)
     return p
 
 
