@@ -11,7 +11,9 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    space, :mod:`gaslight_usd.capture`, or the fit's unseen-surface backdrop)
    are never candidates.
 2. Candidates that touch (within :data:`LINK_SIGMAS` footprints of each other)
-   form **clusters**.
+   form **clusters**; the brightest (mean radiance) :data:`MAX_CLUSTERS` are
+   tested, fainter ones and those under :data:`MIN_POWER_SHARE` of the
+   strongest's power are not lights.
 3. A cluster is an **emitter** when its mean radiance exceeds what the
    brightest plausible diffuse surface could reflect at its place:
    ``L > RHO_MAX * E_max / pi``, where ``E_max`` is the largest irradiance
@@ -24,7 +26,8 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    than the photos' white (and than the cluster) was predicted, not measured,
    so it counts ``2 ** power_uncertainty_stops`` times (it may be that much
    brighter): a wall lit by an underestimated lamp is still explained by it.
-4. Emitter clusters closer than their own sizes are **grouped into lights**:
+4. Emitter clusters closer than their own sizes plus :data:`GROUP_SHARE` of
+   the captured space's median depth are **grouped into lights**:
    position (power-weighted centre), size (principal half-extents), power
    (radiance x projected area, summed), colour, and where the power came from.
 
