@@ -35,7 +35,7 @@ BOX_QUANTILE = 0.01
 widened by :data:`BOX_PAD` of its size each side: a lone floater far behind the floor
 can be alone in its direction bins, while a window is the set's extreme on its axis."""
 BOX_PAD = 0.1
-DEPTH_SLACK = 0.03
+DEPTH_SLACK = 0.0
 """A point may lie this share of the surface's distance beyond it and still be inside."""
 OPAQUE = 0.1
 """Splats fainter than this opacity do not make surfaces (they are haze)."""
