@@ -41,6 +41,8 @@ FLOOR_BINS = 60
 """Height histogram bins between the lowest point (1st percentile) and the lowest camera."""
 FLOOR_PEAK_SHARE = 0.3
 """A floor bin holds at least this share of the fullest bin below the cameras."""
+STRAY_SHARE = 0.01
+"""At most this share of the points below the cameras are strays under the floor."""
 UNKNOWN_UNITS_HINT = ("units unknown (SfM scale): give --camera-height METRES (the photos' "
                       "median height above the floor), --scale or --scale-from for metres")
 AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
@@ -153,7 +155,10 @@ def find_floor(heights: np.ndarray, camera_heights: np.ndarray) -> float | None:
     The floor is the lowest dense horizontal layer below the cameras: the lowest
     bin of a height histogram (from the points' 1st percentile up to the lowest
     camera) holding at least FLOOR_PEAK_SHARE of the fullest bin; its points'
-    median height. Stray points under the floor fill no bin that much.
+    median height. Stray points under the floor fill no bin that much. A floor
+    of repeating tiles gives SfM few points (the example's floor holds 5 of its
+    1176), so the lowest furniture tops can make the denser layer: the floor is
+    never above the height with only STRAY_SHARE of the points under it.
     """
     heights = np.asarray(heights, np.float64)
     top = float(np.min(camera_heights))
@@ -167,8 +172,15 @@ def find_floor(heights: np.ndarray, camera_heights: np.ndarray) -> float | None:
     if counts.max() < MIN_FLOOR_POINTS // 2:
         return None
     first = int(np.flatnonzero(counts >= FLOOR_PEAK_SHARE * counts.max())[0])
-    lo, hi = edges[max(first - 1, 0)], edges[min(first + 2, FLOOR_BINS)]
-    return float(np.median(below[(below >= lo) & (below <= hi)]))
+    lo, hi = edges[max(first - 1, 0)], edges[min(first + 3, FLOOR_BINS)]
+    layer = float(np.median(below[(below >= lo) & (below <= hi)]))
+    k = max(int(STRAY_SHARE * len(below)), 3)
+    lowest = float(np.partition(below, k)[k])
+    width = edges[1] - edges[0]
+    if layer - lowest <= 3 * width:  # the layer is the floor (its noise reaches below)
+        return layer
+    band = below[(below >= lowest) & (below <= lowest + 2 * width)]
+    return float(np.median(band))  # the floor's points, not its lowest noise
 
 
 def parse_scale_from(text: str) -> tuple[str, str, float]:
