@@ -1,8 +1,9 @@
 """Splats -> HDRIs: a folder with one lat-long (and cube) EXR per probe point.
 
-Options: ``at`` (one (x, y, z) or a list of them; default the centre of the
-splats' bounding box), ``size`` (lat-long width, default 2048), ``cube``,
-``faces``, ``tx``, ``output_space`` (an OCIO name; default the working space).
+Options: ``at`` (one (x, y, z) or a list of them; default: the cameras' median
+point moved to free space, :func:`gaslight_usd.probe.default_probe`), ``size``
+(lat-long width, default 2048), ``cube``, ``faces``, ``tx``, ``output_space``
+(an OCIO name; default the working space).
 """
 
 from __future__ import annotations
@@ -20,16 +21,23 @@ from gaslight_usd.registry import Converter
 
 
 def probe_points(at, scene) -> list[tuple[float, float, float]]:
-    """``at`` as a list of 3-tuples; the splats' bounding-box centre when None."""
+    """``at`` as a list of 3-tuples; the default probe (inside the set) when None."""
+    return [p for p, _ in probe_choices(at, scene)]
+
+
+def probe_choices(at, scene) -> list[tuple[tuple[float, float, float], str]]:
+    """Probe points with how each was chosen (given, or the default probe's reason)."""
     if at is None or len(at) == 0:
-        lo, hi = scene.bounds()
-        return [tuple(float(v) for v in (lo + hi) / 2)]
+        from gaslight_usd.probe import default_probe
+
+        choice = default_probe(scene)
+        return [(tuple(float(v) for v in choice.position), "default: " + choice.how)]
     arr = np.asarray(at, dtype=np.float64)
     if arr.ndim == 1:
         arr = arr[None]
     if arr.shape[-1] != 3 or not np.isfinite(arr).all():
         raise InputError(f"probe points must be finite X,Y,Z triples, got {at!r}")
-    return [tuple(float(v) for v in p) for p in arr]
+    return [(tuple(float(v) for v in p), "given (--at)") for p in arr]
 
 
 def export_hdri_stage(ctx: StageContext) -> StageResult:
@@ -39,7 +47,8 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
     o = ctx.options
     src = ctx.input(Kind.SPLATS).path
     scene = read_ply(src)
-    points = probe_points(o.get("at"), scene)
+    choices = probe_choices(o.get("at"), scene)
+    points = [p for p, _ in choices]
     out = Path(ctx.output)
     paths = o.get("paths") or probe_output_paths(out, len(points))
     s = ctx.settings
@@ -52,13 +61,17 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
         if warning:
             warnings.append(warning)
             ctx.progress.message(f"warning: {warning}")
-    for i, (pos, path) in enumerate(zip(points, paths, strict=True), start=1):
+    for i, ((pos, how), path) in enumerate(zip(choices, paths, strict=True), start=1):
         files = render_probe(scene, pos, path, width=int(o.get("size") or DEFAULT_WIDTH),
                              cube=bool(o.get("cube")), faces=bool(o.get("faces")),
                              tx=bool(o.get("tx")), working_space=s.working_space,
                              output_space=out_space, config_uri=s.ocio_config,
-                             attributes={"gaslight:source": str(src)}, device=s.device)
-        written.append({"position": list(pos), "files": [str(p) for p in files.all()]})
+                             attributes={"gaslight:source": str(src),
+                                         "gaslight:probeChoice": how}, device=s.device)
+        written.append({"position": list(pos), "chosen": how,
+                        "files": [str(p) for p in files.all()]})
+        if how.startswith("default"):
+            ctx.progress.message(f"probe at {', '.join(f'{v:.3g}' for v in pos)} ({how})")
         ctx.progress.update(i, len(points), probe=str(path))
     return StageResult(
         metadata={"probes": written, "colour_space": out_space or s.working_space,

@@ -1,7 +1,8 @@
 """Splats -> OpenUSD: ParticleField splats, emissive instancer, UsdLux rig.
 
 Options (``ctx.options``): ``as`` (list of particlefield, instancer, rig),
-``half``, ``emit_threshold``, ``palette_tolerance``, ``rig_tolerance``,
+``half``, ``emit_threshold`` (default: the lights finder's emitters),
+``palette_tolerance``, ``rig_tolerance``, ``default_variant``,
 ``non_emitters`` (drop | diffuse), ``at`` (probe point for the rig),
 ``dome_width``, ``max_layer_bytes``, ``usdz`` (also write ``<stem>.usdz``),
 ``display_ply`` (also write a display-referred PLY there).
@@ -45,7 +46,8 @@ def export_usd_stage(ctx: StageContext) -> StageResult:
     opts = ExportOptions(
         variants=tuple(o.get("as") or VARIANTS),
         half=bool(o.get("half", False)),
-        emit_threshold=float(o.get("emit_threshold", 1.0)),
+        emit_threshold=(None if o.get("emit_threshold") is None
+                        else float(o["emit_threshold"])),
         palette_tolerance=float(o.get("palette_tolerance", 0.10)),
         non_emitters=str(o.get("non_emitters", "drop")),
         rig_tolerance=float(o.get("rig_tolerance", 0.05)),
@@ -55,12 +57,21 @@ def export_usd_stage(ctx: StageContext) -> StageResult:
         working_space=ctx.settings.working_space,
         ocio_config=ctx.settings.ocio_config,
         seed=ctx.settings.seed,
+        default_variant=o.get("default_variant"),
     )
     ctx.progress.message(f"exporting {scene.count} splats as {', '.join(opts.variants)}")
     report = export_usd(scene, out, opts, source=relative_source(src, out.parent),
                         progress=ctx.progress)
     files = [str(p) for p in report.files]
     metrics = dict(report.metrics)
+    for light in metrics.get("lights", {}).get("lights", []):
+        ctx.progress.message(
+            "light at " + ", ".join(f"{v:.3g}" for v in light["position"])
+            + f": radius {light['radius']:.3g}, power {max(light['power']):.3g} "
+            f"({light['power_source']}, +-{light['power_uncertainty_stops']} stops)")
+    warning = metrics.get("instancer", {}).get("warning")
+    if warning:
+        ctx.progress.message(f"warning: {warning}")
     if report.errors:
         raise GaslightError("USD validation failed: " + "; ".join(map(str, report.errors[:3])),
                             out)

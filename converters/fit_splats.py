@@ -44,6 +44,17 @@ def _refined_model(data, cameras):
     return dataclasses.replace(data.model, cameras=moved)
 
 
+def length_unit(frame: dict) -> str:
+    """The PLY's length unit in words: metres, or unknown with how to give one."""
+    mpu = frame.get("meters_per_unit") if isinstance(frame, dict) else None
+    if mpu:
+        return "metres" if float(mpu) == 1.0 else f"{float(mpu)} metres"
+    if isinstance(frame, dict) and frame.get("frame_source") == "sfm":
+        return ("unknown (SfM scale): give --camera-height, --scale or --scale-from to "
+                "`poses`/`run` for metres")
+    return "unknown (the given poses' own unit)"
+
+
 def fit(ctx: StageContext) -> StageResult:
     opts = ctx.options
     name = opts.get("preset") or "fast"
@@ -68,6 +79,9 @@ def fit(ctx: StageContext) -> StageResult:
         "reference_ev": attrs.get("gaslight:reference_ev"),
         "units": "relative radiance (linear HDR, as the HDR views)",
         "frame": data.model.frame,
+        "length_unit": length_unit(data.model.frame),
+        # where the photos were taken: the default probe and the captured space start there
+        "cameras": {"centres": [[round(float(v), 6) for v in c.center] for c in data.cameras]},
         "provenance": {
             "tool": f"gaslight2usd {tool_version()}",
             "method": "fit.splats (3DGS-style fit on linear HDR views)",

@@ -3,10 +3,11 @@
 Options (the ``poses`` step's options in a chain run; all optional):
 ``matcher`` (exhaustive | sequential), ``camera_model``, ``single_camera``,
 ``min_registered`` (share, default 0.5), ``panorama`` (auto | on | off),
-``scale`` (metres per SfM unit) or ``scale_from`` ("IMG_A,IMG_B,METRES"),
+``scale`` (metres per SfM unit), ``scale_from`` ("IMG_A,IMG_B,METRES") or
+``camera_height`` (the photos' median height above the floor, metres),
 ``binary`` (write .bin instead of .txt), ``max_image_size``, ``verbose``.
-The model is moved to the project's SfM frame (+Y up, origin at the scene
-centre; see gaslight_usd.frame) and written with its ``frame.json``.
+The model is moved to the project's SfM frame (+Y up, the floor at y = 0, origin
+under the cameras; see gaslight_usd.frame) and written with its ``frame.json``.
 """
 
 from __future__ import annotations
@@ -31,7 +32,10 @@ def solve(ctx: StageContext) -> StageResult:
     result = solve_poses(ctx.input(Kind.LDR_VIEWS).path, sfm_opts, ctx.progress)
     for warning in result.warnings:
         ctx.progress.message(f"warning: {warning}")
-    model = sfm_frame(result.model, scale=opts.get("scale"), scale_from=opts.get("scale_from"))
+    model = sfm_frame(result.model, scale=opts.get("scale"), scale_from=opts.get("scale_from"),
+                      camera_height=opts.get("camera_height"))
+    if not model.frame["scale_known"]:
+        ctx.progress.message(f"warning: {model.frame['units']}")
     model.frame["sfm"] = {"matcher": sfm_opts.matcher, "camera_model": sfm_opts.camera_model,
                           "registered": len(result.registered), "photos": len(result.photos),
                           "unregistered": result.unregistered}

@@ -7,13 +7,16 @@ to a well-behaved one (:func:`sfm_frame`):
   camera's -y axis), so exports are not upside down or tilted;
 * **heading**: the cameras' mean viewing direction, flattened to the floor,
   looks along -Z (as a USD/OpenGL camera does);
-* **origin**: the scene centre, the per-axis median of the sparse points
-  (robust to stray points); the mean camera centre when there are fewer than
-  :data:`MIN_POINTS_FOR_CENTRE` points;
+* **floor**: the lowest dense layer of sparse points below the cameras (a
+  height histogram's lowest bin holding at least :data:`FLOOR_PEAK_SHARE` of
+  the fullest bin below the cameras), put at y = 0, as a TD expects a set;
+* **origin**: on the floor under the cameras' median point (where the photos
+  were taken from); without a floor, the cameras' median point itself;
 * **scale**: kept as solved (units arbitrary: ``meters_per_unit`` is ``None``
   and ``scale_known`` false) unless the user gives a factor (``--scale``: metres
-  per SfM unit) or a known distance between two camera centres
-  (``--scale-from A,B,DIST``); then units are metres (``meters_per_unit`` 1.0).
+  per SfM unit), a known distance between two camera centres
+  (``--scale-from A,B,DIST``) or the photos' median height above the floor
+  (``--camera-height METRES``); then units are metres (``meters_per_unit`` 1.0).
 
 The transform applied (``x_new = s R x_old + t`` as a 4x4 matrix) and the
 frame facts go to ``frame.json`` beside the model; user-given poses keep their
@@ -32,6 +35,16 @@ from .colmap import ColmapModel
 from .errors import InputError
 
 MIN_POINTS_FOR_CENTRE = 10
+MIN_FLOOR_POINTS = 20
+"""Sparse points below the cameras needed to look for a floor."""
+FLOOR_BINS = 60
+"""Height histogram bins between the lowest point (1st percentile) and the lowest camera."""
+FLOOR_PEAK_SHARE = 0.3
+"""A floor bin holds at least this share of the fullest bin below the cameras."""
+STRAY_SHARE = 0.01
+"""At most this share of the points below the cameras are strays under the floor."""
+UNKNOWN_UNITS_HINT = ("units unknown (SfM scale): give --camera-height METRES (the photos' "
+                      "median height above the floor), --scale or --scale-from for metres")
 AXES = {"X": np.array([1.0, 0, 0]), "Y": np.array([0, 1.0, 0]), "Z": np.array([0, 0, 1.0])}
 
 
@@ -136,6 +149,40 @@ def up_rotation(model: ColmapModel) -> np.ndarray:
     return _rotation_to(fwd, -AXES["Z"]) @ r1
 
 
+def find_floor(heights: np.ndarray, camera_heights: np.ndarray) -> float | None:
+    """Height of the floor among sparse point ``heights`` (+Y up), or None when unseen.
+
+    The floor is the lowest dense horizontal layer below the cameras: the lowest
+    bin of a height histogram (from the points' 1st percentile up to the lowest
+    camera) holding at least FLOOR_PEAK_SHARE of the fullest bin; its points'
+    median height. Stray points under the floor fill no bin that much. A floor
+    of repeating tiles gives SfM few points (the example's floor holds 5 of its
+    1176), so the lowest furniture tops can make the denser layer: the floor is
+    never above the height with only STRAY_SHARE of the points under it.
+    """
+    heights = np.asarray(heights, np.float64)
+    top = float(np.min(camera_heights))
+    below = heights[heights < top]
+    if len(below) < MIN_FLOOR_POINTS:
+        return None
+    low = float(np.percentile(below, 1))
+    if not top > low:
+        return None
+    counts, edges = np.histogram(below, bins=FLOOR_BINS, range=(low, top))
+    if counts.max() < MIN_FLOOR_POINTS // 2:
+        return None
+    first = int(np.flatnonzero(counts >= FLOOR_PEAK_SHARE * counts.max())[0])
+    lo, hi = edges[max(first - 1, 0)], edges[min(first + 3, FLOOR_BINS)]
+    layer = float(np.median(below[(below >= lo) & (below <= hi)]))
+    k = max(int(STRAY_SHARE * len(below)), 3)
+    lowest = float(np.partition(below, k)[k])
+    width = edges[1] - edges[0]
+    if layer - lowest <= 3 * width:  # the layer is the floor (its noise reaches below)
+        return layer
+    band = below[(below >= lowest) & (below <= lowest + 2 * width)]
+    return float(np.median(band))  # the floor's points, not its lowest noise
+
+
 def parse_scale_from(text: str) -> tuple[str, str, float]:
     """``"IMG_A,IMG_B,DIST"`` -> (name a, name b, distance in metres)."""
     parts = [p.strip() for p in str(text).split(",")]
@@ -152,12 +199,27 @@ def parse_scale_from(text: str) -> tuple[str, str, float]:
 
 
 def sfm_frame(model: ColmapModel, scale: float | None = None,
-              scale_from: tuple[str, str, float] | str | None = None) -> ColmapModel:
+              scale_from: tuple[str, str, float] | str | None = None,
+              camera_height: float | None = None) -> ColmapModel:
     """Move an SfM model to the well-behaved frame (module docstring); record it."""
     if not model.cameras:
         raise InputError("no registered cameras to define a frame")
+    given = [n for n, v in (("--scale", scale), ("--scale-from", scale_from),
+                            ("--camera-height", camera_height)) if v is not None]
+    if len(given) > 1:
+        raise InputError(f"give one of --scale, --scale-from, --camera-height (got "
+                         f"{', '.join(given)})")
     rot = up_rotation(model)
-    centre, centre_how = scene_centre(model, rot)
+    cams = model.centers @ rot.T
+    cam_median = np.median(cams, axis=0)
+    floor = find_floor((model.points @ rot.T)[:, 1], cams[:, 1]) if len(model.points) else None
+    centre = cam_median.copy()
+    if floor is not None:
+        centre[1] = floor
+        centre_how = "on the floor (lowest dense layer of sparse points) under the cameras' " \
+                     "median point"
+    else:
+        centre_how = "the cameras' median point (no floor found among the sparse points)"
     s, scale_source = 1.0, None
     if scale_from is not None:
         a, b, dist = parse_scale_from(scale_from) if isinstance(scale_from, str) else scale_from
@@ -173,16 +235,29 @@ def sfm_frame(model: ColmapModel, scale: float | None = None,
         if not scale > 0:
             raise InputError(f"--scale must be positive, got {scale}")
         s, scale_source = float(scale), f"factor {scale} metres per SfM unit"
+    elif camera_height is not None:
+        if not camera_height > 0:
+            raise InputError(f"--camera-height must be positive, got {camera_height}")
+        if floor is None:
+            raise InputError("--camera-height needs the floor, and no floor was found among "
+                             "the sparse points (photos of the floor help); use --scale or "
+                             "--scale-from instead")
+        above = float(np.median(cams[:, 1]) - floor)
+        s = camera_height / above
+        scale_source = f"cameras' median height {camera_height} m above the floor"
     t = -s * centre
     out = transform_model(model, s, rot, t)
+    height = None if floor is None else float(s * (np.median(cams[:, 1]) - floor))
     out.frame = {
         "frame_source": "sfm",
         "up_axis": "Y",
         "meters_per_unit": 1.0 if scale_source else None,
         "scale_known": scale_source is not None,
         "scale_source": scale_source,
-        "units": "metres" if scale_source else "arbitrary (SfM scale; no metric scale given)",
+        "units": "metres" if scale_source else UNKNOWN_UNITS_HINT,
         "origin": centre_how,
+        "floor": {"found": floor is not None, "y": 0.0 if floor is not None else None,
+                  "camera_height_median": height},
         "up": "mean camera up vector -> +Y; mean viewing heading -> -Z",
         "transform_from_sfm": similarity_matrix(s, rot, t).tolist(),
     }

@@ -107,10 +107,26 @@ def describe_ply(path: Path) -> dict[str, Any]:
         "scale_median": float(np.median(scene.scales)) if scene.count else None,
         "colour_max": float(peak.max()) if scene.count else None,
         "emitters_above_1": int((peak > 1.0).sum()),
+        "length_unit": scene.metadata.get("length_unit") or (
+            "metres" if (scene.metadata.get("frame") or {}).get("meters_per_unit") == 1.0
+            else "unknown"),
+        "lights": _lights(scene),
         "colour_dynamic_range_stops": round(dynamic_range_stops(peak), 2) if scene.count else 0,
         "metadata": scene.metadata,
         "bytes": path.stat().st_size,
     }
+
+
+def _lights(scene) -> list[dict[str, Any]]:
+    """The set's lights (gaslight_usd.lights), one line's worth each."""
+    from .lights import find_lights
+
+    return [_light_line(light.as_dict()) for light in find_lights(scene)]
+
+
+def _light_line(light: dict[str, Any]) -> dict[str, Any]:
+    keys = ("position", "radius", "power", "colour", "power_source", "power_uncertainty_stops")
+    return {k: light[k] for k in keys if k in light}
 
 
 def describe_usd(path: Path) -> dict[str, Any]:
@@ -136,9 +152,17 @@ def describe_usd(path: Path) -> dict[str, Any]:
             vs = default.GetVariantSet(name)
             variant_sets[name] = {"choices": vs.GetVariantNames(),
                                   "selected": vs.GetVariantSelection()}
+    import json
+
+    lights_text = root.customLayerData.get("gaslight:lights")
+    try:
+        lights = [_light_line(li) for li in json.loads(lights_text)] if lights_text else []
+    except (ValueError, TypeError, KeyError):
+        lights = []
     return {
         "file": str(path),
         "type": "usd",
+        "lights": lights,
         "up_axis": str(UsdGeom.GetStageUpAxis(stage)),
         "meters_per_unit": float(UsdGeom.GetStageMetersPerUnit(stage)),
         "meters_per_unit_authored": stage.HasAuthoredMetadata("metersPerUnit"),
@@ -149,7 +173,8 @@ def describe_usd(path: Path) -> dict[str, Any]:
         "particle_fields": particles,
         "variant_sets": variant_sets,
         "layers": [layer.identifier for layer in stage.GetUsedLayers()],
-        "custom_layer_data": {k: _jsonable(v) for k, v in root.customLayerData.items()},
+        "custom_layer_data": {k: _jsonable(v) for k, v in root.customLayerData.items()
+                              if k != "gaslight:lights"},
         "bytes": path.stat().st_size,
     }
 
@@ -193,7 +218,10 @@ def describe(path: str | Path) -> dict[str, Any]:
 def format_facts(facts: dict[str, Any]) -> str:
     lines = []
     for key, value in facts.items():
-        if isinstance(value, dict):
+        if key == "lights" and isinstance(value, list):
+            lines.append(f"lights: {len(value)}")
+            lines += ["  " + ", ".join(f"{k} {v}" for k, v in light.items()) for light in value]
+        elif isinstance(value, dict):
             if not value:
                 continue
             lines.append(f"{key}:")

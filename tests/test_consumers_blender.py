@@ -199,3 +199,37 @@ def test_instancer_imports_into_blender_and_lights_a_cycles_render(tmp_path):
                         radii, scene.base_colours[mask], ALBEDO).mean(0) for c in probe_px])
     ratio = (near @ LUMA) / (expect @ LUMA)
     assert np.all(np.abs(ratio - 1) < RADIANCE_TOLERANCE), ratio
+
+
+@pytest.mark.skipif(bpy_python() is None,
+                    reason="no bpy interpreter: set GASLIGHT_BPY_PYTHON or create .venv-bpy "
+                           "(tests/consumers/README.md)")
+def test_default_scene_file_brings_the_lights_and_the_dome_into_an_empty_blender(tmp_path):
+    """The whole-scene file as `export` writes it by default, imported as is."""
+    from test_lights import LAMP, WINDOW, room_scene
+
+    scene, _ = room_scene()
+    ply = write_ply(tmp_path / "splats.ply", scene)
+    usd = tmp_path / "scene.usda"
+    subprocess.run([str(EXPORT), "export", str(ply), "-o", str(usd), "--dome-size", "256",
+                    "-q"], check=True, timeout=300)
+    stage = Usd.Stage.Open(str(usd))
+    assert stage.GetDefaultPrim().GetVariantSet("lighting").GetVariantSelection() == "rig"
+    lights = json.loads(stage.GetRootLayer().customLayerData["gaslight:lights"])
+    assert len(lights) == 2
+    report = run_blender(tmp_path, usd, {"working_space": "ACEScg", "resolution": 32,
+                                         "samples": 4, "camera_location": [0, 0, 1.5],
+                                         "camera_target": [1, 0, 1.5]})
+    assert not report["world"]  # an empty scene: Blender would drop a DomeLight...
+    shells = [m for m in report["textured_meshes"]
+              if any(Path(f).name == "scene.dome.exr" for f in m["images"])]
+    assert len(shells) == 1  # ...the dome shell carries its light in
+    got = np.array([li["position"] for li in report["lights"]])
+    assert len(got) == 2 and all(li["type"] == "POINT" for li in report["lights"])
+    radii = np.array([li["radius"] for li in report["lights"]])
+    for true_light in (LAMP, WINDOW):
+        dist = np.linalg.norm(got - usd_to_blender(true_light), axis=1)
+        k = int(np.argmin(dist))
+        # the window's light sits inside the room, pulled in from the wall by its radius
+        assert dist[k] < radii[k] + 0.25
+    assert report["render"]["finite"] and max(report["render"]["mean"]) > 0

@@ -129,3 +129,22 @@ def test_cli_several_probes(tmp_path):
     assert main(["hdri", str(tmp_path / "b.ply"), "--at", "0,0,0", "-o",
                  str(tmp_path / "y.exr"), "--device", "tpu", "-q"]) == 2
     assert not (tmp_path / "y.exr").exists()
+
+
+def test_default_probe_is_inside_the_set_and_stated(tmp_path, capsys):
+    """Without --at the probe is where the cameras stood, not the splats' bounds centre."""
+    import json
+
+    from test_lights import ROOM_HI, ROOM_LO, room_scene, with_far_backdrop
+
+    scene = with_far_backdrop(room_scene()[0])
+    ply = write_ply(tmp_path / "room.ply", scene)
+    out = tmp_path / "probe.exr"
+    assert main(["hdri", str(ply), "-o", str(out), "--size", "64", "--json"]) == 0
+    probe = json.loads(capsys.readouterr().out)["probes"][0]
+    pos = np.array(probe["position"])
+    assert np.all(pos > ROOM_LO + 0.3) and np.all(pos < ROOM_HI - 0.3)
+    assert probe["chosen"].startswith("default: median of 12 camera centres")
+    spec = oiio.ImageInput.open(str(out)).spec()
+    assert spec.getattribute("gaslight:probeChoice") == probe["chosen"]
+    np.testing.assert_allclose(spec.getattribute("gaslight:probePosition"), pos, rtol=1e-5)

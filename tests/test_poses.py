@@ -20,6 +20,7 @@ from gaslight_usd.frame import (
     parse_scale_from,
     rotation_angle_deg,
     sfm_frame,
+    split_similarity,
     transform_model,
     umeyama,
 )
@@ -73,7 +74,9 @@ def test_sfm_frame_puts_y_up_and_centre_at_origin():
     ups, fwds = camera_axes(framed.cameras)
     up = ups.mean(0) / np.linalg.norm(ups.mean(0))
     np.testing.assert_allclose(up, [0, 1, 0], atol=1e-9)
-    np.testing.assert_allclose(np.median(framed.points, 0), 0, atol=1e-9)
+    # no floor among these points: the origin is the cameras' median point
+    assert not framed.frame["floor"]["found"]
+    np.testing.assert_allclose(np.median(framed.centers, 0), 0, atol=1e-9)
     heading = fwds.mean(0) * [1, 0, 1]
     np.testing.assert_allclose(heading / np.linalg.norm(heading), [0, 0, -1], atol=1e-9)
     # the same photos: every point lands on the same pixel in every camera
@@ -84,6 +87,53 @@ def test_sfm_frame_puts_y_up_and_centre_at_origin():
     assert f["up_axis"] == "Y" and f["meters_per_unit"] is None and not f["scale_known"]
     m = np.array(f["transform_from_sfm"])
     np.testing.assert_allclose(tilted.points @ m[:3, :3].T + m[:3, 3], framed.points, atol=1e-9)
+
+
+def room_model(seed: int = 0, strays: int = 0) -> ColmapModel:
+    """Cameras at 1.5 m round a room whose floor (y = 0) and walls hold the points,
+    moved by a random similarity (SfM's arbitrary frame and scale)."""
+    rng = np.random.default_rng(seed)
+    cams = [look_at(np.array([1.2 * np.cos(a) + 0.4, 1.5 + 0.05 * np.sin(3 * a),
+                              1.2 * np.sin(a) - 0.3]), np.array([0.4, 1.2, -0.3]),
+                    up=(0, -1, 0), name=f"v{i}.jpg")  # image rows run down the world
+            for i, a in enumerate(np.linspace(0, 6, 10))]
+    floor = np.column_stack([rng.uniform(-2.5, 2.5, 300), rng.normal(0, 0.005, 300),
+                             rng.uniform(-2, 2, 300)])
+    walls = np.column_stack([np.full(200, 2.5), rng.uniform(0, 3, 200), rng.uniform(-2, 2, 200)])
+    stray = rng.uniform(-3, 3, (strays, 3)) * [1, 0, 1] + [0, -1.0, 0]
+    model = ColmapModel(cameras=cams, points=np.concatenate([floor, walls, stray]))
+    rot = quaternion_to_matrix(rng.normal(size=4))
+    return transform_model(model, 0.37, rot, rng.normal(size=3))
+
+
+def test_sfm_frame_puts_the_floor_at_zero_under_the_cameras():
+    framed = sfm_frame(room_model(strays=3))  # stray points under the floor are ignored
+    f = framed.frame
+    assert f["floor"]["found"] and f["units"].startswith("units unknown")
+    assert "--camera-height" in f["units"]
+    floor_pts = framed.points[:300]
+    assert abs(float(np.median(floor_pts[:, 1]))) < 0.01 * 0.37 * 3
+    centres = framed.centers
+    np.testing.assert_allclose(np.median(centres, 0)[[0, 2]], 0, atol=1e-9)
+    assert np.median(centres[:, 1]) > 0
+    # --camera-height: metres, the cameras' median height exactly that above the floor
+    metric = sfm_frame(room_model(strays=3), camera_height=1.5)
+    assert metric.frame["meters_per_unit"] == 1.0 and metric.frame["scale_known"]
+    assert np.median(metric.centers[:, 1]) == pytest.approx(1.5)
+    assert np.median(metric.points[:300, 1]) == pytest.approx(0.0, abs=0.01)
+    assert metric.frame["floor"]["camera_height_median"] == pytest.approx(1.5)
+    # the room's true size comes back: the model was shrunk by 0.37 from metres, and
+    # its cameras' true median height is not quite 1.5
+    true_median = np.median(1.5 + 0.05 * np.sin(3 * np.linspace(0, 6, 10)))
+    scale, _, _ = split_similarity(np.array(metric.frame["transform_from_sfm"]))
+    assert scale * 0.37 == pytest.approx(1.5 / true_median, rel=0.005)
+
+
+def test_camera_height_needs_a_floor_and_one_scale():
+    with pytest.raises(InputError, match="no floor"):
+        sfm_frame(ring_model(), camera_height=1.5)
+    with pytest.raises(InputError, match="one of"):
+        sfm_frame(room_model(), scale=2.0, camera_height=1.5)
 
 
 def test_scale_from_two_cameras_gives_metres():

@@ -11,7 +11,7 @@ from plyfile import PlyData, PlyElement
 from pxr import Usd, UsdGeom, UsdLux, UsdShade, UsdVol
 
 from gaslight_usd.cli.main import main
-from gaslight_usd.ply import read_ply
+from gaslight_usd.ply import read_ply, write_ply
 from gaslight_usd.splats import SH_C0, SplatScene
 from gaslight_usd.usd.palette import fit_palette
 from gaslight_usd.usd.particlefield import bytes_per_splat, chunk_ranges, read_particle_field
@@ -130,6 +130,7 @@ def test_stage_metadata_colour_space_provenance_and_variants(tmp_path):
     assert list(root.GetAttribute("gaslight:sourceImages").Get()) == ["a.jpg", "b.jpg"]
     vset = root.GetVariantSet("lighting")
     assert sorted(vset.GetVariantNames()) == ["instancer", "particlefield"]
+    # no rig written: the first form written is the default
     assert vset.GetVariantSelection() == "particlefield"
     vset.SetVariantSelection("instancer")
     inst = stage.GetPrimAtPath("/Scene/Emitters/Instancer")
@@ -220,7 +221,10 @@ def test_rig_lights_and_dome(tmp_path):
     for direction, order in (([1.0, 0.3, 0.0], [0, 1, 2]), ([-0.4, 0.8, -0.6], [2, 1, 0])):
         lamp = 3 * np.array(direction) / np.linalg.norm(direction)
         nearest = int(np.argmin(np.linalg.norm(pos - lamp, axis=1)))
-        assert np.linalg.norm(pos[nearest] - lamp) < 0.5
+        radius = UsdLux.SphereLight(lights[nearest]).GetRadiusAttr().Get()
+        assert np.linalg.norm(pos[nearest] - lamp) < 0.5 + radius
+        # inside the set: the whole sphere within the walls (radius 3, splats 0.15 wide)
+        assert np.linalg.norm(pos[nearest]) + radius <= 3.0 + 0.15
         colour = np.asarray(UsdLux.SphereLight(lights[nearest]).GetColorAttr().Get())
         assert colour[order[0]] >= colour[order[1]] >= colour[order[2]]
 
@@ -260,3 +264,51 @@ def test_frame_record_from_poses_sets_up_axis_and_units():
     unscaled = StageFrame.from_metadata({"frame": {"up_axis": "Y", "meters_per_unit": None}})
     assert unscaled.up_axis == "Y"
     assert unscaled.assumed == ["units unknown, metersPerUnit assumed 1.0"]
+
+
+def test_instancer_says_when_its_palette_misses_the_tolerance(tmp_path, capsys):
+    """Issue 24 item 6: 64 colours cannot hold 2000 random emitter colours within 10 %."""
+    rng = np.random.default_rng(4)
+    n = 2000
+    colours = np.exp(rng.uniform(0.5, 7.0, (n, 3)))
+    scene = SplatScene.from_activated(rng.normal(size=(n, 3)), colours, np.full((n, 3), 0.05),
+                                      np.full(n, 0.9), metadata={"meters_per_unit": 1.0})
+    report = export_usd(scene, tmp_path / "scene.usda",
+                        ExportOptions(variants=("instancer",), emit_threshold=1.0))
+    inst = report.metrics["instancer"]
+    assert inst["palette_size"] == 64 and inst["relative_error_p95"] > 0.10
+    assert inst["palette_tolerance_met"] is False
+    assert "misses its tolerance" in inst["warning"] and "64 colours" in inst["warning"]
+    ply = write_ply(tmp_path / "many.ply", scene)
+    assert main(["export", str(ply), "-o", str(tmp_path / "cli.usda"), "--as", "instancer",
+                 "--emit-threshold", "1"]) == 0
+    assert "misses its tolerance" in capsys.readouterr().out
+    # a palette that meets it says so
+    ok = export_usd(lamp_scene(), tmp_path / "ok.usda", ExportOptions(variants=("instancer",)))
+    assert ok.metrics["instancer"]["palette_tolerance_met"] is True
+    assert "warning" not in ok.metrics["instancer"]
+
+
+def test_unknown_sfm_units_are_stated_in_the_usd(tmp_path):
+    """SfM poses without a scale: the stage says the unit is unknown and how to give one."""
+    from gaslight_usd.converters.fit_splats import length_unit
+
+    from gaslight_usd.frame import UNKNOWN_UNITS_HINT
+
+    frame = {"frame_source": "sfm", "up_axis": "Y", "meters_per_unit": None,
+             "units": UNKNOWN_UNITS_HINT}
+    assert "--camera-height" in length_unit(frame)
+    assert length_unit({**frame, "meters_per_unit": 1.0}) == "metres"
+    scene = lamp_scene(n=50)
+    scene.metadata = {"frame": frame, "length_unit": length_unit(frame)}
+    export_usd(scene, tmp_path / "scene.usda", ExportOptions(variants=("particlefield",)))
+    stage = Usd.Stage.Open(str(tmp_path / "scene.usda"))
+    data = stage.GetRootLayer().customLayerData
+    assert data["gaslight:unitsKnown"] is False
+    assert data["gaslight:units"].startswith("unknown") and "--camera-height" in data[
+        "gaslight:units"]
+    scene.metadata = {"frame": {**frame, "meters_per_unit": 1.0}}
+    export_usd(scene, tmp_path / "m.usda", ExportOptions(variants=("particlefield",)))
+    stage = Usd.Stage.Open(str(tmp_path / "m.usda"))
+    data = stage.GetRootLayer().customLayerData
+    assert data["gaslight:unitsKnown"] is True and data["gaslight:units"] == "metres"

@@ -24,13 +24,21 @@ variant per form, each referencing .usdc layers written beside it:
                  0..1, SH in the schema's per-particle layout; --half for the
                  half-precision attributes); split over several layers above
                  3 GiB so no file reaches USDZ's 4 GiB limit
-  instancer      a PointInstancer of emissive icosphere prototypes for splats
-                 whose radiance (max channel of the base colour) > --emit-threshold;
+  instancer      a PointInstancer of emissive icosphere prototypes for the splats
+                 of the set's lights (or, with --emit-threshold R, every splat whose
+                 radiance, the max channel of its base colour, is above R);
                  colours share a palette as small as keeps the 95th percentile
                  relative colour error <= --palette-tolerance
-  rig            a DomeLight (lat-long EXR of the other splats at --at) plus as
-                 few SphereLights as keep the irradiance error at that point
-                 <= --rig-tolerance
+  rig            a DomeLight (lat-long EXR of the other splats at --at) plus one
+                 SphereLight per light of the set, powers measured at that point
+                 (the error against --rig-tolerance is reported)
+
+Lights: clusters of splats brighter than the photos' white that no diffuse
+surface lit by the rest of the scene could explain (radiance above 0.9 x the
+irradiance reaching them / pi); splats outside the captured space never are.
+Each light (position, size, power, colour, where its power came from) is listed
+in the output and in scene.usda's customLayerData (gaslight:lights).
+The root layer selects the rig variant unless --default-variant says otherwise.
 
 Stage metadata: upAxis and metersPerUnit from the PLY's metadata (defaults Y
 and 1.0, stated in customLayerData when assumed); colour space via
@@ -64,9 +72,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="half-precision ParticleField attributes (positions stay float)")
     p.add_argument("--usdz", action="store_true",
                    help="also package everything as SCENE.usdz (validated)")
-    p.add_argument("--emit-threshold", type=float, default=1.0, metavar="R",
-                   help="a splat emits when the max channel of its base colour > R "
-                        "(default 1, the GaSLight rule)")
+    p.add_argument("--emit-threshold", type=float, metavar="R",
+                   help="a splat emits when the max channel of its base colour > R (the "
+                        "GaSLight rule; default: the splats of the set's lights, those no "
+                        "diffuse surface lit by the scene could explain)")
+    p.add_argument("--default-variant", choices=FORMS, metavar="FORM",
+                   help="the 'lighting' variant scene.usda selects (default: rig, which "
+                        "Blender, usdview and Karma all import; Blender drops "
+                        "particlefield)")
     p.add_argument("--palette-tolerance", type=float, default=0.10, metavar="REL",
                    help="95th-percentile relative colour error allowed for the "
                         "instancer palette (default 0.10)")
@@ -100,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
                "palette_tolerance": args.palette_tolerance,
                "non_emitters": args.non_emitters, "rig_tolerance": args.rig_tolerance,
                "at": args.at, "dome_width": args.dome_size,
-               "display_ply": args.display_ply}
+               "display_ply": args.display_ply, "default_variant": args.default_variant}
     ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
                        output=args.output, settings=settings, options=options,
                        progress=progress_from(args))
@@ -111,6 +124,13 @@ def run(args: argparse.Namespace) -> int:
         i = m["instancer"]
         lines.append(f"  instancer: {i['emitters']} emitters, palette {i['palette_size']}, "
                      f"p95 colour error {i.get('relative_error_p95', 0):.3f}")
+    for light in m.get("lights", {}).get("lights", []):
+        lines.append("  light at " + ", ".join(f"{v:.3g}" for v in light["position"])
+                     + f": radius {light['radius']:.3g}, power "
+                     + ", ".join(f"{v:.3g}" for v in light["power"])
+                     + f" ({light['power_source']})")
+    if "instancer" in m and m["instancer"].get("warning"):
+        lines.append(f"  warning: {m['instancer']['warning']}")
     if "rig" in m:
         r = m["rig"]
         lines.append(f"  rig: {r['lights']} sphere lights + dome, irradiance error "

@@ -46,7 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("splats", type=Path, help="3DGS PLY (linear HDR colours)")
     p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point in the splats' world frame (repeat for several; "
-                        "default: centre of the splats' bounds)")
+                        "default: where the cameras stood, at their median height, moved "
+                        "to free space)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PROBE.exr",
                    help="lat-long EXR to write (numbered when several --at)")
     p.add_argument("--size", type=int, default=2048, metavar="N",
@@ -86,12 +87,12 @@ def run(args: argparse.Namespace) -> int:
                        progress=progress_from(args))
     result = export_hdri_stage(ctx)
     probes = result.metadata["probes"]
-    text = "\n".join(f"probe at {tuple(p['position'])}: " + ", ".join(p["files"])
-                     for p in probes)
+    text = "\n".join(f"probe at {tuple(p['position'])} ({p['chosen']}): "
+                     + ", ".join(p["files"]) for p in probes)
     preview = write_preview_for(args, [Path(p["files"][0]) for p in probes],
                                 settings.working_space)
     if preview is not None:
         result.metadata["preview"] = str(preview)
         text += f"\npreview: {preview}"
-    emit(args, {**result.metadata, **result.counts}, text)
+    emit(args, {**result.counts, **result.metadata}, text)  # the probe list, not its count
     return 0

@@ -22,9 +22,11 @@ Solving:  gaslight2usd poses PHOTOS_DIR -o SPARSE_DIR
   Writes a standard COLMAP text model (cameras.txt, images.txt, points3D.txt;
   --binary for .bin) that COLMAP, nerfstudio and 3DGS trainers read, plus
   frame.json. The solved poses are moved to a well-behaved frame: +Y up (the
-  cameras' mean up vector), the mean viewing heading along -Z, origin at the
-  scene centre (median of the sparse points). Units stay arbitrary unless you
-  give a scale; then they are metres and frame.json says meters_per_unit 1.
+  cameras' mean up vector), the mean viewing heading along -Z, the floor (the
+  lowest dense layer of sparse points) at y = 0 and the origin on it under the
+  cameras' median point. Units stay unknown unless you give a scale
+  (--camera-height, --scale or --scale-from); then they are metres and
+  frame.json says meters_per_unit 1.
   Photos that do not register are named with the reason (too few features,
   no overlap with the others...); the run fails when fewer than
   --min-registered of them register. Lat-long panoramas (2:1 photos) become
@@ -40,6 +42,7 @@ Importing: gaslight2usd poses --from POSES -o OUT
 examples:
   gaslight2usd poses examples/room/photos -o out/sparse
   gaslight2usd poses photos -o sparse --scale-from IMG_0001.jpg,IMG_0002.jpg,0.5
+  gaslight2usd poses photos -o sparse --camera-height 1.6
   gaslight2usd poses video_frames -o sparse --matcher sequential
   gaslight2usd poses --from sparse -o transforms.json
   gaslight2usd poses examples/room/photos --from examples/room/sparse/0 -o out/sparse
@@ -80,6 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     scale.add_argument("--scale-from", metavar="IMG_A,IMG_B,METRES",
                        help="known distance in metres between the camera centres of two "
                             "photos: the model is scaled to metres")
+    scale.add_argument("--camera-height", type=float, metavar="METRES",
+                       help="the photos' median height above the floor: the model is "
+                            "scaled to metres (needs the floor in some photos)")
     add_common(p)
     p.set_defaults(handler=run)
 
@@ -95,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
     options = {"matcher": args.matcher, "camera_model": args.camera_model,
                "single_camera": not args.separate_cameras,
                "min_registered": args.min_registered, "panorama": args.panorama,
-               "scale": args.scale, "scale_from": args.scale_from, "binary": args.binary,
+               "scale": args.scale, "scale_from": args.scale_from,
+               "camera_height": args.camera_height, "binary": args.binary,
                "verbose": args.verbose}
     runner = ChainRun(args.output, settings_from(args), default_registry(),
                       progress_from(args))

@@ -30,6 +30,7 @@ command skips the stages that finished with the same inputs and options.
 
 examples:
   gaslight2usd run examples/room/photos -o out
+  gaslight2usd run photos -o out --camera-height 1.6
   gaslight2usd run examples/room/photos --poses examples/room/sparse -o out --preset balanced
   gaslight2usd run splats.ply -o out --to usd,hdri --at 0,1.5,0
 """
@@ -59,6 +60,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--poses", type=Path, metavar="SPARSE_DIR|transforms.json",
                    help="poses to use instead of solving them (the same as giving them as "
                         "an INPUT; must be a COLMAP model or transforms.json)")
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument("--camera-height", type=float, metavar="METRES",
+                       help="SfM poses: the photos' median height above the floor, for "
+                            "metres (without a scale the unit is unknown)")
+    scale.add_argument("--scale", type=float, metavar="FACTOR",
+                       help="SfM poses: metres per SfM unit")
+    scale.add_argument("--scale-from", metavar="IMG_A,IMG_B,METRES",
+                       help="SfM poses: known distance between two photos' camera centres")
+    p.add_argument("--default-variant", choices=["particlefield", "instancer", "rig"],
+                   metavar="FORM", help="the lighting variant scene.usda selects (default rig)")
     p.add_argument("--method", choices=["bracket", "recursive", "linear"],
                    help="HDR uplift method (default: bracket when brackets are present, "
                         "else recursive)")
@@ -71,7 +82,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
     p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
-                        "default: the centre of the splats)")
+                        "default: where the cameras stood, at their median height, moved "
+                        "to free space)")
     p.add_argument("--as", dest="export_as", type=_forms, metavar="LIST",
                    help="USD forms: particlefield,instancer,rig (default: all three)")
     p.add_argument("--device", default="cpu", metavar="cpu|cuda[:N]",
@@ -107,9 +119,12 @@ def run(args: argparse.Namespace) -> int:
         choose=choose,
         options=step_options({
             "uplift": {"predictor": args.predictor},
+            "poses": {"camera_height": args.camera_height, "scale": args.scale,
+                      "scale_from": args.scale_from},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
                     "seed": args.seed, "refine_poses": args.refine_poses or None},
-            "export": {"as": list(args.export_as) if args.export_as else None},
+            "export": {"as": list(args.export_as) if args.export_as else None,
+                       "default_variant": args.default_variant},
             "hdri": {"at": args.at, "device": args.device, "cube": args.cube or None},
         }),
         settings={"ocio_config": args.ocio_config, "input_space": args.input_space,

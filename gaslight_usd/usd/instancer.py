@@ -2,9 +2,11 @@
 
 For renderers that do not draw splats (Blender, most path tracers):
 
-- a splat is an *emitter* when its radiance exceeds ``threshold`` (default 1,
-  the GaSLight rule), radiance being the **max channel** of its base (DC)
-  colour in the working space;
+- the emitters are the splats of the set's lights
+  (:func:`gaslight_usd.lights.search_lights`: no diffuse surface lit by the
+  scene explains them, backdrop never), or, with an explicit ``threshold``,
+  the splats whose radiance (the **max channel** of the base colour) exceeds
+  it (the GaSLight rule);
 - every emitter becomes an instance of an icosphere ``Mesh`` prototype with
   the unit sphere's surface area
   (Blender drops materials bound to implicit ``UsdGeom.Sphere`` prototypes and
@@ -136,17 +138,20 @@ def _instance_scales(scene: SplatScene) -> np.ndarray:
 
 
 def write_instancer(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene,
-                    threshold: float = DEFAULT_THRESHOLD,
+                    threshold: float | None = DEFAULT_THRESHOLD,
                     tolerance: float = DEFAULT_TOLERANCE,
                     non_emitters: str = "drop", max_palette: int = MAX_PALETTE,
-                    seed: int = 0) -> InstancerReport:
+                    seed: int = 0, mask: np.ndarray | None = None) -> InstancerReport:
     """Author ``<root>/Instancer`` (a PointInstancer) and ``<root>/Looks`` under ``root``.
 
-    ``root`` must already be a typed Xform (the layer's default prim).
+    ``root`` must already be a typed Xform (the layer's default prim). The
+    emitters are ``mask`` when given (the lights finder's), else the splats
+    above ``threshold``.
     """
     if non_emitters not in ("drop", "diffuse"):
         raise ValueError(f"non_emitters must be 'drop' or 'diffuse', not {non_emitters!r}")
-    mask = emitter_mask(scene, threshold)
+    if mask is None:
+        mask = emitter_mask(scene, DEFAULT_THRESHOLD if threshold is None else threshold)
     report = InstancerReport(emitters=int(mask.sum()))
     groups: list[tuple[str, SplatScene, Palette, bool]] = []
     colours = scene.base_colours

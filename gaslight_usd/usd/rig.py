@@ -1,20 +1,27 @@
-"""The light rig: a DomeLight rendered at a probe point plus a few SphereLights.
+"""The light rig: a DomeLight rendered at a probe point plus the set's lights.
 
-- Emitters (radiance > threshold, as for the instancer) are clustered in
-  space (k-means); each cluster becomes one ``UsdLux.SphereLight`` at its
-  power-weighted centre, radius its spatial spread (at least its splats' size).
+- The lights are the groups :func:`gaslight_usd.lights.search_lights` finds
+  (splats no diffuse surface lit by the scene could explain, backdrop never);
+  each becomes one ``UsdLux.SphereLight`` at its power-weighted centre, radius
+  its spread, placed inside the captured space (pulled in from the walls by
+  its radius). With an explicit ``threshold`` (the old GaSLight rule, radiance
+  above it) the emitters are clustered in space instead (k-means, 1, 2, 3...
+  lights until the error is within tolerance).
 - The ``DomeLight`` (OpenEXR lat-long convention, +Y pole: the original
   DomeLight schema) holds the panorama of every *other* splat rendered at the
-  probe, so lamps are not counted twice.
+  probe (default: :func:`gaslight_usd.probe.default_probe`), so lamps are not
+  counted twice. ``DomeShell`` carries the same texture on an inward emissive
+  sphere round the set, for Blender, which drops a DomeLight when importing
+  into a scene without a World.
 - Each light's power is measured, not guessed: the emitters' share of the
   probe's panorama (full render minus the dome's) is split by direction among
-  the clusters, giving each cluster's irradiance at the probe; radiant
+  the lights, giving each light's irradiance at the probe; radiant
   intensity = that x distance^2, radiance = intensity / (pi r^2), written as
   ``inputs:intensity`` (max channel) x ``inputs:color`` in the working space.
 - The rig's error is the irradiance error at the probe over 26 surface
   normals, relative to the largest reference irradiance:
   ``max_n |E_dome(n) + sum_lights E_l(n) - E_full(n)| / max_n E_full(n)``
-  (luminance). Lights are added (1, 2, 3, ...) until it is within tolerance.
+  (luminance).
 """
 
 from __future__ import annotations
@@ -28,7 +35,7 @@ from .. import colour
 from ..cameras import latlong_directions, latlong_solid_angles
 from ..hdri import write_latlong
 from ..splats import SplatScene
-from .instancer import DEFAULT_THRESHOLD, emitter_mask
+from .instancer import emitter_mask
 from .palette import kmeans
 
 MAX_LIGHTS = 16
@@ -72,20 +79,49 @@ def _cluster_lights(scene: SplatScene, probe: np.ndarray, k: int, seed: int,
     size2 = np.bincount(labels, weight * (scene.scales.astype(np.float64) ** 2).mean(1),
                         minlength=k) / np.maximum(wsum, 1e-30)
     radius = np.sqrt(np.maximum(spread2, size2))
+    return _measure_lights(centre[used], radius[used], np.bincount(labels, minlength=k)[used],
+                           probe, emitted, dirs, d_omega)
+
+
+def _measure_lights(centre: np.ndarray, radius: np.ndarray, members: np.ndarray,
+                    probe: np.ndarray, emitted: np.ndarray, dirs: np.ndarray,
+                    d_omega: np.ndarray) -> dict[str, np.ndarray]:
+    """Sphere lights at ``centre`` (L, 3): the emitters' panorama split among them."""
     to_light = centre - probe
     dist = np.maximum(np.linalg.norm(to_light, axis=1), 1e-9)
     omega = to_light / dist[:, None]
-    # Split the emitters' share of the panorama among clusters by direction.
-    owner = np.argmax(dirs @ omega[used].T, axis=1)
-    flux = np.stack([np.bincount(owner, emitted[:, c] * d_omega, minlength=int(used.sum()))
+    # Split the emitters' share of the panorama among the lights by direction.
+    owner = np.argmax(dirs @ omega.T, axis=1)
+    flux = np.stack([np.bincount(owner, emitted[:, c] * d_omega, minlength=len(centre))
                      for c in range(3)], 1)
     flux = np.maximum(flux, 0.0)  # irradiance normal to each light's direction
-    intensity = flux * dist[used, None] ** 2
-    radiance = intensity / (np.pi * radius[used, None] ** 2)
+    intensity = flux * dist[:, None] ** 2
+    radiance = intensity / (np.pi * radius[:, None] ** 2)
     order = np.argsort(-flux.sum(1))
-    return {"position": centre[used][order], "radius": radius[used][order],
-            "radiance": radiance[order], "flux": flux[order], "direction": omega[used][order],
-            "members": np.bincount(labels, minlength=k)[used][order]}
+    return {"position": centre[order], "radius": radius[order],
+            "radiance": radiance[order], "flux": flux[order], "direction": omega[order],
+            "members": np.asarray(members)[order]}
+
+
+def inside_position(space, position: np.ndarray, radius: float) -> np.ndarray:
+    """``position`` moved so a sphere of ``radius`` lies inside the captured space.
+
+    Clipped into the space's percentile box (inset by the radius where the box is
+    wide enough), then pulled towards the first viewpoint until the sphere ends
+    before the visible surface in its direction and before the light's own
+    centre (a window or a wall lamp is itself the set's surface there).
+    """
+    lo, hi = space.box
+    inset = np.minimum(radius, (hi - lo) / 4.0)
+    p = np.clip(np.asarray(position, np.float64), lo + inset, hi - inset)
+    view = space.views[0]
+    b, r = view.bin_of(p[None])
+    # the light's own centre bounds it too: a window is the set's surface there
+    limit = min(float(view.depth[b[0]]), float(r[0]))
+    if r[0] + radius > limit and r[0] > 0:
+        u = (p - view.point) / r[0]
+        p = view.point + u * max(limit - radius, 0.5 * limit)
+    return p
 
 
 def _lights_irradiance(lights: dict[str, np.ndarray], normals: np.ndarray) -> np.ndarray:
@@ -95,9 +131,14 @@ def _lights_irradiance(lights: dict[str, np.ndarray], normals: np.ndarray) -> np
 
 def fit_rig(scene: SplatScene, probe: np.ndarray, dome_pano: np.ndarray, full_pano: np.ndarray,
             mask: np.ndarray, tolerance: float, working_space: str,
-            ocio_config: str | None, max_lights: int = MAX_LIGHTS, seed: int = 0
+            ocio_config: str | None, max_lights: int = MAX_LIGHTS, seed: int = 0,
+            found: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
             ) -> tuple[dict[str, np.ndarray] | None, dict]:
-    """Fewest lights whose irradiance error at ``probe`` is within ``tolerance``."""
+    """Fewest lights whose irradiance error at ``probe`` is within ``tolerance``.
+
+    ``found``: (centres (L, 3), radii (L,), splat counts (L,)) of lights already
+    found; then those are the lights and only their powers are measured.
+    """
     lum = colour.luminance_weights(working_space, ocio_config).astype(np.float64)
     normals = normals_26()
     e_full = irradiance(full_pano, normals) @ lum
@@ -114,6 +155,13 @@ def fit_rig(scene: SplatScene, probe: np.ndarray, dome_pano: np.ndarray, full_pa
     d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w)).reshape(-1)
     dome_small = _downsample(dome_pano, w)
     emitted = (full_pano - dome_small).reshape(-1, 3).astype(np.float64)
+    if found is not None:
+        lights = _measure_lights(*found, probe, emitted, dirs, d_omega)
+        err = float(np.abs(e_dome + _lights_irradiance(lights, normals) @ lum - e_full).max()
+                    / scale)
+        metrics.update(lights=len(lights["radius"]), irradiance_error=err,
+                       met=err <= tolerance)
+        return lights, metrics
     best, best_err = None, np.inf
     for k in range(1, min(max_lights, emitters.count) + 1):
         lights = _cluster_lights(emitters, probe, k, seed, emitted, dirs, d_omega)
@@ -137,27 +185,122 @@ def _downsample(pano: np.ndarray, width: int) -> np.ndarray:
     return pano[: (h // f) * f, : width * f].reshape(h // f, f, width, f, 3).mean((1, 3))
 
 
+SHELL_ROWS, SHELL_COLUMNS = 32, 64
+"""The dome shell's latitude and longitude segments (its texture carries the detail)."""
+
+
+def dome_shell_mesh(rows: int = SHELL_ROWS, columns: int = SHELL_COLUMNS
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A unit sphere for a lat-long texture, faces turned inwards.
+
+    Returns points (P, 3), face vertex counts (F,), face vertex indices and
+    texture coordinates (P, 2) per vertex: ``s`` runs with the panorama's
+    columns (s = 0 at longitude +pi, the -Z side, through +X at 0.25, +Z at 0.5),
+    ``t`` up (t = 1 at +Y), the OpenEXR lat-long convention of the dome EXR.
+    The seam column is doubled so ``s`` does not wrap inside a face.
+    """
+    s = np.linspace(0.0, 1.0, columns + 1)
+    t = np.linspace(0.0, 1.0, rows + 1)
+    ss, tt = np.meshgrid(s, t)  # (rows + 1, columns + 1), t = 0 at the bottom
+    lon = 2.0 * np.pi * (0.5 - ss)
+    lat = np.pi * (tt - 0.5)
+    points = np.stack([np.sin(lon) * np.cos(lat), np.sin(lat), np.cos(lon) * np.cos(lat)], -1)
+    idx = np.arange((rows + 1) * (columns + 1)).reshape(rows + 1, columns + 1)
+    a, b = idx[:-1, :-1], idx[:-1, 1:]
+    c, d = idx[1:, 1:], idx[1:, :-1]
+    # a (bottom-left), b (bottom-right), c (top-right), d (top-left) in (s, t): seen from
+    # inside the sphere a -> b -> c -> d runs counter-clockwise, so normals face inwards
+    quads = np.stack([a, b, c, d], -1).reshape(-1, 4)
+    return (points.reshape(-1, 3), np.full(len(quads), 4, np.int32),
+            quads.reshape(-1).astype(np.int32), np.stack([ss, tt], -1).reshape(-1, 2))
+
+
+def _define_dome_shell(stage: Usd.Stage, path: Sdf.Path, dome_name: str,
+                       centre: np.ndarray, radius: float) -> None:
+    """An emissive inward sphere textured with the dome, round the set.
+
+    Blender turns a DomeLight into its world only when the scene already has
+    one, so into an empty scene the dome is lost; it does import meshes with
+    UsdPreviewSurface textures (not ``proxy`` purpose ones: off by default in
+    Blender 5), so this shell brings the dome's light along. In a path tracer the
+    shell hides the DomeLight behind it (black diffuse, emitting the dome), so
+    the environment is counted once either way; deactivate ``DomeShell`` to
+    light with the DomeLight alone.
+    """
+    from pxr import UsdGeom, UsdShade, Vt
+
+    points, counts, indices, st = dome_shell_mesh()
+    mesh = UsdGeom.Mesh.Define(stage, path)
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy((points * radius).astype(np.float32)))
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(counts))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(indices))
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateDoubleSidedAttr(False)
+    mesh.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(-radius, -radius, -radius),
+                                         Gf.Vec3f(radius, radius, radius)]))
+    mesh.AddTranslateOp().Set(Gf.Vec3d(*centre))
+    primvar = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar(
+        "st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.vertex)
+    primvar.Set(Vt.Vec2fArray.FromNumpy(st.astype(np.float32)))
+    material = UsdShade.Material.Define(stage, path.AppendChild("Look"))
+    surface = UsdShade.Shader.Define(stage, material.GetPath().AppendChild("Surface"))
+    surface.CreateIdAttr("UsdPreviewSurface")
+    surface.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).Set(Gf.Vec3f(0, 0, 0))
+    surface.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(1.0)
+    reader = UsdShade.Shader.Define(stage, material.GetPath().AppendChild("St"))
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
+    texture = UsdShade.Shader.Define(stage, material.GetPath().AppendChild("Dome"))
+    texture.CreateIdAttr("UsdUVTexture")
+    texture.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(f"./{dome_name}"))
+    texture.CreateInput("sourceColorSpace", Sdf.ValueTypeNames.Token).Set("raw")
+    texture.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(
+        reader.ConnectableAPI(), "result")
+    texture.CreateOutput("rgb", Sdf.ValueTypeNames.Float3)
+    surface.CreateInput("emissiveColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(
+        texture.ConnectableAPI(), "rgb")
+    material.CreateSurfaceOutput().ConnectToSource(surface.ConnectableAPI(), "surface")
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(material)
+
+
 def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
               dome_name: str, probe=None, width: int = 1024,
-              tolerance: float = 0.05, threshold: float = DEFAULT_THRESHOLD,
+              tolerance: float = 0.05, threshold: float | None = None,
               working_space: str = colour.DEFAULT_WORKING_SPACE,
               ocio_config: str | None = None, seed: int = 0,
-              max_lights: int = MAX_LIGHTS) -> dict:
-    """Author ``<root>/Dome`` and ``<root>/Light_NNN``; write the dome EXR in ``folder``."""
+              max_lights: int = MAX_LIGHTS, search=None) -> dict:
+    """Author ``<root>/Dome`` and ``<root>/Light_NNN``; write the dome EXR in ``folder``.
+
+    ``search``: a :class:`gaslight_usd.lights.LightSearch` of ``scene`` (made here
+    when None); ``threshold``: use the old radiance-above-threshold rule instead.
+    """
+    from ..lights import search_lights
+    from ..probe import default_probe
     from ..render.envmap import render_latlong
 
+    search = search if search is not None else search_lights(scene)
+    probe_how = "given (--at)"
     if probe is None:
-        lo, hi = scene.bounds()
-        probe = (lo + hi) / 2
+        choice = default_probe(scene, search.space)
+        probe, probe_how = choice.position, "default: " + choice.how
     probe = np.asarray(probe, np.float64).reshape(3)
-    mask = emitter_mask(scene, threshold)
+    found = None
+    if threshold is not None:
+        mask = emitter_mask(scene, threshold)
+    else:
+        mask = search.emitters
+        if search.lights:
+            radii = np.array([light.radius for light in search.lights])
+            found = (np.array([inside_position(search.space, light.position, r)
+                               for light, r in zip(search.lights, radii, strict=True)]),
+                     radii, np.array([len(light.splats) for light in search.lights]))
     eval_width = min(EVAL_WIDTH, width)
     width = max(eval_width, (width // eval_width) * eval_width)
     dome_pano = render_latlong(scene.subset(~mask), probe, width)
     full_pano = render_latlong(scene, probe, eval_width) if mask.any() else _downsample(
         dome_pano, eval_width)
     lights, metrics = fit_rig(scene, probe, dome_pano, full_pano, mask, tolerance,
-                              working_space, ocio_config, max_lights, seed)
+                              working_space, ocio_config, max_lights, seed, found)
     space = colour.resolve_space(working_space, ocio_config)
     write_latlong(folder / dome_name, dome_pano, probe, space, None, ocio_config,
                   {"gaslight:content": "splats other than the rig's SphereLights"})
@@ -167,6 +310,10 @@ def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
     dome.CreateIntensityAttr(1.0)
     dome.CreateColorAttr(Gf.Vec3f(1.0, 1.0, 1.0))
     dome.GetPrim().SetCustomDataByKey("gaslight:probePosition", Gf.Vec3d(*probe))
+    lo, hi = search.space.box
+    reach = float(np.linalg.norm(np.maximum(np.abs(lo - probe), np.abs(hi - probe))))
+    shell_radius = 2.0 * reach if np.isfinite(reach) and reach > 0 else 100.0
+    _define_dome_shell(stage, root.AppendChild("DomeShell"), dome_name, probe, shell_radius)
     count = 0 if lights is None else len(lights["radius"])
     for i in range(count):
         rad = lights["radiance"][i]
@@ -178,6 +325,13 @@ def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
         light.CreateNormalizeAttr(False)
         light.AddTranslateOp().Set(Gf.Vec3d(*lights["position"][i]))
         light.GetPrim().SetCustomDataByKey("gaslight:splats", int(lights["members"][i]))
-    metrics.update(probe=[float(v) for v in probe], emitters=int(mask.sum()),
-                   dome_width=width, files=[dome_name])
+    dome.GetPrim().SetCustomDataByKey("gaslight:probeChoice", probe_how)
+    metrics["sphere_lights"] = [] if lights is None else [
+        {"position": [round(float(v), 5) for v in lights["position"][i]],
+         "radius": round(float(lights["radius"][i]), 5),
+         "radiance": [float(f"{v:.6g}") for v in lights["radiance"][i]],
+         "splats": int(lights["members"][i])} for i in range(count)]
+    metrics.update(probe=[float(v) for v in probe], probe_chosen=probe_how,
+                   emitters=int(mask.sum()), dome_width=width, files=[dome_name],
+                   rule="lights finder" if threshold is None else f"radiance > {threshold}")
     return metrics

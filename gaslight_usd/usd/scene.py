@@ -33,7 +33,7 @@ from .. import colour
 from ..errors import InputError
 from ..progress import Progress
 from ..splats import SplatScene
-from .palette import DEFAULT_THRESHOLD, DEFAULT_TOLERANCE
+from .palette import DEFAULT_TOLERANCE
 from .particlefield import MAX_LAYER_BYTES, bytes_per_splat, chunk_ranges, write_particle_field
 from .stage import Provenance, StageFrame, new_stage, tag_layer_root
 from .validate import Finding, validate
@@ -48,7 +48,8 @@ _CHILD = {"particlefield": "Splats", "instancer": "Emitters", "rig": "Rig"}
 class ExportOptions:
     variants: tuple[str, ...] = VARIANTS
     half: bool = False
-    emit_threshold: float = DEFAULT_THRESHOLD
+    emit_threshold: float | None = None
+    """None: emitters are the lights finder's; a number: radiance above it (GaSLight)."""
     palette_tolerance: float = DEFAULT_TOLERANCE
     non_emitters: str = "drop"
     rig_tolerance: float = 0.05
@@ -58,6 +59,14 @@ class ExportOptions:
     working_space: str = colour.DEFAULT_WORKING_SPACE
     ocio_config: str | None = None
     seed: int = 0
+    default_variant: str | None = None
+    """The ``lighting`` variant selected in the root layer; None: :data:`DEFAULT_VARIANT`
+    when written, else the first written."""
+
+
+DEFAULT_VARIANT = "rig"
+"""The variant a consumer sees unless it picks one: lights every renderer imports
+(Blender, usdview, Karma read UsdLux), where Blender does not import ParticleFields."""
 
 
 @dataclass
@@ -80,7 +89,8 @@ def _layer_names(stem: str, variant: str, parts: int) -> list[str]:
 
 
 def _write_particlefield(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
-                         prov: Provenance, opts: ExportOptions) -> tuple[list[str], dict]:
+                         prov: Provenance, opts: ExportOptions, search=None
+                         ) -> tuple[list[str], dict]:
     ranges = chunk_ranges(scene.count, bytes_per_splat(scene.sh.shape[1], opts.half),
                           opts.max_layer_bytes)
     names = _layer_names(stem, "particlefield", len(ranges))
@@ -101,26 +111,38 @@ def _stage_frame(stage: Usd.Stage, frame: StageFrame) -> None:
 
 
 def _write_instancer(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
-                     prov: Provenance, opts: ExportOptions) -> tuple[list[str], dict]:
+                     prov: Provenance, opts: ExportOptions, search=None
+                     ) -> tuple[list[str], dict]:
     name = _layer_names(stem, "instancer", 1)[0]
     stage, root = new_stage(folder / name, frame, "Emitters", "Xform")
     tag_layer_root(root, prov, opts.ocio_config)
     from . import instancer as inst  # UsdShade: only when an instancer is written
 
+    mask = None if opts.emit_threshold is not None or search is None else search.emitters
     report = inst.write_instancer(stage, root.GetPath(), scene, opts.emit_threshold,
-                                  opts.palette_tolerance, opts.non_emitters, seed=opts.seed)
+                                  opts.palette_tolerance, opts.non_emitters, seed=opts.seed,
+                                  mask=mask)
     stage.GetRootLayer().Save()
+    rule = ("lights finder (gaslight_usd.lights)" if mask is not None
+            else f"max channel of base colour > {opts.emit_threshold or 1.0}")
     metrics = {"emitters": report.emitters, "diffuse": report.diffuse,
-               "dropped": report.dropped, "threshold": opts.emit_threshold,
-               "measure": "max channel of base colour",
+               "dropped": report.dropped, "threshold": opts.emit_threshold, "rule": rule,
                "palette_tolerance_p95_relative": opts.palette_tolerance, **report.palette}
+    p95 = report.palette.get("relative_error_p95")
+    metrics["palette_tolerance_met"] = p95 is None or p95 <= opts.palette_tolerance
+    if not metrics["palette_tolerance_met"]:
+        metrics["warning"] = (f"instancer palette misses its tolerance: p95 colour error "
+                              f"{p95:.3f} > {opts.palette_tolerance} with "
+                              f"{report.palette.get('palette_size')} colours (at most "
+                              f"{inst.MAX_PALETTE})")
     if report.diffuse_palette:
         metrics["diffuse_palette"] = report.diffuse_palette
     return [name], metrics
 
 
 def _write_rig(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
-               prov: Provenance, opts: ExportOptions) -> tuple[list[str], dict]:
+               prov: Provenance, opts: ExportOptions, search=None
+               ) -> tuple[list[str], dict]:
     from .rig import write_rig  # needs the splat renderer
 
     name = _layer_names(stem, "rig", 1)[0]
@@ -130,7 +152,7 @@ def _write_rig(folder: Path, stem: str, scene: SplatScene, frame: StageFrame,
                        probe=opts.probe, width=opts.dome_width,
                        tolerance=opts.rig_tolerance, threshold=opts.emit_threshold,
                        working_space=opts.working_space, ocio_config=opts.ocio_config,
-                       seed=opts.seed)
+                       seed=opts.seed, search=search)
     stage.GetRootLayer().Save()
     return [name, *result.pop("files")], result
 
@@ -139,9 +161,25 @@ WRITERS = {"particlefield": _write_particlefield, "instancer": _write_instancer,
            "rig": _write_rig}
 
 
+def default_variant(written: list[str], wanted: str | None = None) -> str:
+    """The variant the root layer selects: ``wanted``, else DEFAULT_VARIANT, else the first."""
+    if wanted is not None:
+        if wanted not in written:
+            raise InputError(f"--default-variant {wanted!r} is not among the forms written "
+                             f"({', '.join(written)})")
+        return wanted
+    return DEFAULT_VARIANT if DEFAULT_VARIANT in written else written[0]
+
+
 def _write_root(path: Path, stem: str, layers: dict[str, list[str]], frame: StageFrame,
-                prov: Provenance, opts: ExportOptions) -> None:
+                prov: Provenance, opts: ExportOptions, lights: list | None = None) -> None:
     stage, root = new_stage(path, frame, ROOT_PRIM, "Xform", kind="assembly")
+    if lights is not None:
+        import json
+
+        data = dict(stage.GetRootLayer().customLayerData)
+        data["gaslight:lights"] = json.dumps(lights)
+        stage.GetRootLayer().customLayerData = data
     tag_layer_root(root, prov, opts.ocio_config)
     vset = root.GetVariantSets().AddVariantSet(VARIANT_SET)
     for variant, names in layers.items():
@@ -158,7 +196,7 @@ def _write_root(path: Path, stem: str, layers: dict[str, list[str]], frame: Stag
                 for i, n in enumerate(usd_files):
                     part = stage.DefinePrim(child.AppendChild(f"Part_{i:03d}"))
                     part.GetReferences().AddReference(f"./{n}")
-    vset.SetVariantSelection(next(iter(layers)))
+    vset.SetVariantSelection(default_variant(list(layers), opts.default_variant))
     stage.GetRootLayer().Save()
 
 
@@ -191,19 +229,28 @@ def export_usd(scene: SplatScene, out_path: str | Path, opts: ExportOptions | No
     scratch = folder / f".{stem}.partial-{secrets.token_hex(4)}"
     scratch.mkdir()
     report = ExportReport(root=out_path)
+    search = None
     try:
+        if opts.emit_threshold is None and {"instancer", "rig"} & set(opts.variants):
+            from ..lights import search_lights
+
+            t0 = time.perf_counter()
+            search = search_lights(scene)
+            report.seconds["lights"] = round(time.perf_counter() - t0, 4)
+            report.metrics["lights"] = search.summary()
         layers: dict[str, list[str]] = {}
         for variant in VARIANTS:
             if variant not in opts.variants:
                 continue
             t0 = time.perf_counter()
             progress.message(f"writing the {variant} layer(s)")
-            names, metrics = WRITERS[variant](scratch, stem, scene, frame, prov, opts)
+            names, metrics = WRITERS[variant](scratch, stem, scene, frame, prov, opts, search)
             report.seconds[variant] = round(time.perf_counter() - t0, 4)
             progress.message(f"{variant} written in {report.seconds[variant]:.1f} s")
             layers[variant] = names
             report.metrics[variant] = metrics
-        _write_root(scratch / out_path.name, stem, layers, frame, prov, opts)
+        _write_root(scratch / out_path.name, stem, layers, frame, prov, opts,
+                    None if search is None else [li.as_dict() for li in search.lights])
         moved = [n for names in layers.values() for n in names] + [out_path.name]
         for name in moved:  # root layer last
             os.replace(scratch / name, folder / name)
@@ -228,6 +275,7 @@ def open_variant(root: str | Path, variant: str) -> Usd.Stage:
 
 
 def probe_default(scene: SplatScene) -> np.ndarray:
-    """The default probe point: the centre of the splats' bounding box."""
-    lo, hi = scene.bounds()
-    return ((lo + hi) / 2).astype(np.float64)
+    """The default probe point (:func:`gaslight_usd.probe.default_probe`)."""
+    from ..probe import default_probe
+
+    return default_probe(scene).position

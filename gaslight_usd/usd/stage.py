@@ -58,6 +58,8 @@ class StageFrame:
     up_axis: str = DEFAULT_UP_AXIS
     meters_per_unit: float = DEFAULT_METERS_PER_UNIT
     assumed: list[str] = field(default_factory=list)
+    units: str = "metres"
+    """The length unit in words (what to do when unknown), for customLayerData."""
 
     @classmethod
     def from_metadata(cls, metadata: Mapping[str, Any]) -> StageFrame:
@@ -77,7 +79,12 @@ class StageFrame:
         except (TypeError, ValueError):
             mpu = DEFAULT_METERS_PER_UNIT
             assumed.append(f"units unknown, metersPerUnit assumed {DEFAULT_METERS_PER_UNIT}")
-        return cls(up, mpu, assumed)
+            units = str(metadata.get("length_unit") or frame.get("units") or "unknown")
+            if not units.startswith("unknown") and "unknown" not in units:
+                units = f"unknown ({units})"
+        else:
+            units = "metres" if mpu == 1.0 else f"{mpu} metres"
+        return cls(up, mpu, assumed, units)
 
 
 @dataclass
@@ -134,7 +141,8 @@ def new_stage(path: str | Path, frame: StageFrame, default_prim: str,
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if frame.up_axis == "Y" else UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, frame.meters_per_unit)
     data = {"gaslight:upAxisKnown": "up axis unknown" not in " ".join(frame.assumed),
-            "gaslight:unitsKnown": "units unknown" not in " ".join(frame.assumed)}
+            "gaslight:unitsKnown": "units unknown" not in " ".join(frame.assumed),
+            "gaslight:units": frame.units}
     if frame.assumed:
         data["gaslight:assumed"] = "; ".join(frame.assumed)
     stage.GetRootLayer().customLayerData = data

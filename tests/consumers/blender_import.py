@@ -17,7 +17,8 @@ What it does:
    imported objects from camera rays (so the render shows the light they cast,
    not the emitters themselves), renders Cycles on the CPU and writes the
    render beside REPORT as a 32-bit float EXR;
-4. writes REPORT: instances, counts, pixel statistics, and the mean colour of
+4. writes REPORT: instances, lights, meshes with image textures, whether the
+   scene has a World, counts, pixel statistics, and the mean colour of
    the render in a window around the projection of each emitting instance and
    of each SETTINGS ``probe_points`` entry, and far from all of them.
 
@@ -108,6 +109,17 @@ def list_instances() -> tuple[list[dict], list[str]]:
     return instances, real
 
 
+def image_files(obj) -> list[str]:
+    """Image files the object's materials read (image texture nodes)."""
+    files = []
+    for slot in obj.material_slots:
+        tree = slot.material.node_tree if slot.material else None
+        for node in tree.nodes if tree else []:
+            if node.type == "TEX_IMAGE" and node.image is not None:
+                files.append(bpy.path.abspath(node.image.filepath))
+    return files
+
+
 def add_ground(z: float, size: float, albedo: float) -> None:
     bpy.ops.mesh.primitive_plane_add(size=size, location=(0.0, 0.0, z))
     plane = bpy.context.active_object
@@ -189,6 +201,12 @@ def main(argv: list[str]) -> None:
     import_usd(usd_path, settings["working_space"])
     instances, real = list_instances()
     imported = [o for o in bpy.context.scene.objects]
+    lights = [{"name": o.name, "type": o.data.type, "position": list(o.matrix_world.translation),
+               "radius": float(getattr(o.data, "shadow_soft_size", 0.0)),
+               "energy": float(o.data.energy), "colour": list(o.data.color)}
+              for o in imported if o.type == "LIGHT"]
+    textured = [{"name": o.name, "images": image_files(o)} for o in imported
+                if o.type == "MESH" and image_files(o)]
     emitters = [i for i in instances if max(i["emission"]) > 0]
     report = {
         "blender": bpy.app.version_string,
@@ -197,6 +215,9 @@ def main(argv: list[str]) -> None:
         "working_space_interop_id": bpy.data.colorspace.working_space_interop_id,
         "settings": settings,
         "real_objects": real,
+        "lights": lights,
+        "textured_meshes": textured,
+        "world": bpy.context.scene.world is not None,
         "instances": instances,
         "counts": {"instances": len(instances), "emitters": len(emitters),
                    "materials": len(bpy.data.materials),

@@ -1,0 +1,142 @@
+"""The captured space: where the cameras stood and what they saw around them.
+
+A fit puts splats where the photos need them, and some land behind the walls
+(depth is uncertain on flat, featureless or bright surfaces, and SfM noise
+smears surfaces in depth): on the example about a third of a ``fast`` fit's
+splats lie more than 5 cm outside the room. Lights, probes and rig lights
+belong inside the set, so the set is taken as the union of the free space each
+camera position sees: from every viewpoint (camera centres recorded in the
+PLY's ``cameras`` metadata, at most :data:`MAX_VIEWPOINTS` of them; without
+them the splats' median point) the visible surface is found per direction
+(:mod:`gaslight_usd.surroundings`; surfaces are the opaque splats no brighter
+than the photos' white, so lights hide nothing), and a point is inside when some
+viewpoint sees it no farther than that surface plus a small reach. Splats outside are
+*backdrop*: they may show in panoramas, but they are never lights.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .splats import SplatScene
+from .surroundings import Surroundings, scene_view, splat_sigma
+
+MAX_VIEWPOINTS = 1
+"""Viewpoints the space is seen from: the cameras' median point only. More (camera
+centres spread through the list) see round occluders, but each sees through the walls'
+depth smear at grazing angles: on the example's ``fast`` fit, 16 of them let 9 emitters
+more than 5 cm outside the room through where the median point lets 5."""
+BOX_QUANTILE = 0.01
+"""Inside also means inside the box of the opaque splats' 1-99 percentiles per axis,
+widened by :data:`BOX_PAD` of its size each side: a lone floater far behind the floor
+can be alone in its direction bins, while a window is the set's extreme on its axis."""
+BOX_PAD = 0.1
+DEPTH_SLACK = 0.0
+"""A point may lie this share of the surface's distance beyond it and still be inside."""
+OPAQUE = 0.1
+"""Splats fainter than this opacity do not make surfaces (they are haze)."""
+
+
+def camera_centres(metadata: Mapping[str, Any]) -> np.ndarray | None:
+    """(M, 3) camera centres a PLY's metadata records (``cameras.centres``), or None."""
+    cams = metadata.get("cameras")
+    centres = cams.get("centres") if isinstance(cams, Mapping) else None
+    try:
+        arr = np.asarray(centres, np.float64).reshape(-1, 3)
+    except (TypeError, ValueError):
+        return None
+    arr = arr[np.isfinite(arr).all(1)]
+    return arr if len(arr) else None
+
+
+def fit_backdrop_mask(scene: SplatScene) -> np.ndarray:
+    """Splats the fit added as its unseen-surface backdrop (the last ones it wrote)."""
+    fit = scene.metadata.get("fit_metrics")
+    n = int(fit.get("backdrop_splats") or 0) if isinstance(fit, Mapping) else 0
+    mask = np.zeros(scene.count, bool)
+    if 0 < n <= scene.count:
+        mask[scene.count - n:] = True
+    return mask
+
+
+@dataclass
+class CaptureSpace:
+    viewpoints: np.ndarray
+    """(V, 3) points the space is seen from."""
+    views: list[Surroundings]
+    box: np.ndarray
+    """(2, 3) low and high corners of the opaque splats' percentile box."""
+    source: str
+    """How the viewpoints were chosen (for reports)."""
+
+    def inside(self, points: np.ndarray, reach: np.ndarray | float = 0.0) -> np.ndarray:
+        """(N,) True where some viewpoint sees ``points`` no farther than its surface.
+
+        ``reach`` (scalar or (N,)) lets a point lie that much beyond the surface
+        (a splat's own extent).
+        """
+        points = np.asarray(points, np.float64).reshape(-1, 3)
+        reach = np.broadcast_to(np.asarray(reach, np.float64), (len(points),))
+        seen = np.zeros(len(points), bool)
+        in_box = np.all((points >= self.box[0]) & (points <= self.box[1]), axis=1)
+        for view in self.views:
+            b, r = view.bin_of(points)
+            limit = view.depth[b] * (1.0 + DEPTH_SLACK) + reach
+            seen |= r <= limit
+        return seen & in_box
+
+    def median_depth(self) -> float:
+        """Median distance from the viewpoints to their visible surfaces (a room's size)."""
+        depths = np.concatenate([v.depth[np.isfinite(v.depth)] for v in self.views] or
+                                [np.zeros(0)])
+        return float(np.median(depths)) if len(depths) else float("nan")
+
+
+def _pick(points: np.ndarray, count: int) -> np.ndarray:
+    """At most ``count`` of ``points``, spread evenly through the list (deterministic)."""
+    if len(points) <= count:
+        return points
+    return points[np.linspace(0, len(points) - 1, count).round().astype(int)]
+
+
+def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None) -> CaptureSpace:
+    """The captured space of ``scene`` (module docstring); ``viewpoints`` override the cameras."""
+    opaque = scene.opacities > OPAQUE
+    if viewpoints is None:
+        viewpoints = camera_centres(scene.metadata)
+        source = f"camera centres ({0 if viewpoints is None else len(viewpoints)})"
+    else:
+        source = f"given viewpoints ({len(viewpoints)})"
+    if viewpoints is None or len(viewpoints) == 0:
+        pos = scene.positions[opaque] if opaque.any() else scene.positions
+        viewpoints = np.median(pos, axis=0)[None] if len(pos) else np.zeros((1, 3))
+        source = "the splats' per-axis median (no camera centres recorded)"
+    viewpoints = np.asarray(viewpoints, np.float64).reshape(-1, 3)
+    if len(viewpoints) > MAX_VIEWPOINTS:
+        viewpoints = (np.median(viewpoints, axis=0)[None] if MAX_VIEWPOINTS == 1
+                      else _pick(viewpoints, MAX_VIEWPOINTS))
+        source += ", seen from their median point"
+    # Surfaces are the dim splats: a lamp does not hide what lies just behind it, and a
+    # window's own depth smear does not push the wall out.
+    white = float(scene.metadata.get("exposure_scale", 1.0) or 1.0)
+    surface = opaque & (scene.base_colours.max(axis=1) <= white)
+    views = [scene_view(scene, v, mask=surface if surface.sum() >= 10 else opaque)
+             for v in viewpoints]
+    pos = scene.positions[opaque] if opaque.sum() >= 10 else scene.positions
+    if len(pos):
+        box = np.quantile(pos, [BOX_QUANTILE, 1 - BOX_QUANTILE], axis=0).astype(np.float64)
+        pad = BOX_PAD * (box[1] - box[0])
+        box = np.stack([box[0] - pad, box[1] + pad])
+    else:
+        box = np.array([[-np.inf] * 3, [np.inf] * 3])
+    return CaptureSpace(viewpoints, views, box, source)
+
+
+def backdrop_mask(scene: SplatScene, space: CaptureSpace) -> np.ndarray:
+    """(N,) splats outside the captured space, or the fit's own unseen-surface backdrop."""
+    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene))
+    return outside | fit_backdrop_mask(scene)

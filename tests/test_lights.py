@@ -1,0 +1,159 @@
+"""Lights, not bright surfaces; a probe inside the set; backdrop never a light.
+
+A room of diffuse wall splats (5 x 3 x 4 m, floor y = 0) with a lamp (a small
+cluster of radiance 200) 1 m under the ceiling, a window on the +x wall
+(radiance 20), the ceiling patch the lamp lights (radiance 1.4, what a wall of
+albedo 0.7 reflects under that lamp), bright splats behind the window wall (a
+fit's depth smear) and the fit's own unseen-surface backdrop tiles. The old
+rule (radiance above 1) makes the lit ceiling, the backdrop and the smear
+emitters; the lights finder must not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gaslight_usd.capture import capture_space
+from gaslight_usd.lights import find_lights, search_lights
+from gaslight_usd.probe import clearance, default_probe
+from gaslight_usd.splats import SplatScene
+from gaslight_usd.usd.instancer import emitter_mask
+
+ROOM_LO, ROOM_HI = np.array([-2.5, 0.0, -2.0]), np.array([2.5, 3.0, 2.0])
+LAMP = np.array([-0.6, 2.0, 0.4])
+WINDOW = np.array([2.49, 1.6, 0.2])
+LIT = np.array([-0.6, 2.99, 0.4])
+SPACING = 0.15
+
+
+def _face_grid(axis: int, level: float, rng) -> np.ndarray:
+    u, v = [a for a in range(3) if a != axis]
+    gu = np.arange(ROOM_LO[u] + SPACING / 2, ROOM_HI[u], SPACING)
+    gv = np.arange(ROOM_LO[v] + SPACING / 2, ROOM_HI[v], SPACING)
+    uu, vv = np.meshgrid(gu, gv, indexing="ij")
+    pts = np.empty((uu.size, 3))
+    pts[:, u], pts[:, v], pts[:, axis] = uu.ravel(), vv.ravel(), level
+    return pts + rng.normal(0, 0.005, pts.shape)
+
+
+def room_scene(method: str = "recursive", with_cameras: bool = True) -> tuple[SplatScene, dict]:
+    rng = np.random.default_rng(0)
+    walls = np.concatenate([_face_grid(a, lv, rng) for a in range(3)
+                            for lv in (ROOM_LO[a], ROOM_HI[a])])
+    rgb = np.full((len(walls), 3), 0.3)
+    sigma = np.full(len(walls), 0.1)
+    window = (np.abs(walls[:, 0] - 2.5) < 0.01) & (np.abs(walls[:, 1] - WINDOW[1]) < 0.55) & \
+        (np.abs(walls[:, 2] - WINDOW[2]) < 0.7)
+    rgb[window] = [18.0, 19.0, 20.0]
+    lit = (np.abs(walls[:, 1] - 3.0) < 0.01) & (np.linalg.norm(walls - LIT, axis=1) < 0.5)
+    rgb[lit] = [1.4, 1.2, 1.0]  # albedo 0.7 under the lamp (6.3, as the splats render it)
+    lamp = LAMP + rng.normal(0, 0.02, (30, 3))
+    smear = np.column_stack([np.full(12, 3.2), rng.uniform(1.1, 2.1, 12),
+                             rng.uniform(-0.4, 0.8, 12)])  # behind the window wall
+    tiles = np.column_stack([rng.uniform(-2, 2, 15), np.full(15, 3.0), rng.uniform(-1.5, 1.5, 15)])
+    pos = np.concatenate([walls, lamp, smear, tiles])
+    rgb = np.concatenate([rgb, np.tile([200.0, 160.0, 100.0], (30, 1)),
+                          np.full((12, 3), 30.0), np.full((15, 3), 2.5)])
+    sigma = np.concatenate([sigma, np.full(30, 0.02), np.full(12, 0.08), np.full(15, 0.2)])
+    angles = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    cams = np.column_stack([1.2 * np.cos(angles), 1.5 + 0.1 * np.sin(2 * angles),
+                            1.0 * np.sin(angles)])
+    meta = {"provenance": {"hdr_method": method},
+            "fit_metrics": {"backdrop_splats": 15}}  # the tiles are the fit's last splats
+    if with_cameras:
+        meta["cameras"] = {"centres": cams.tolist()}
+    scene = SplatScene.from_activated(pos, rgb, np.repeat(sigma[:, None], 3, 1),
+                                      np.full(len(pos), 0.9), metadata=meta)
+    parts = {"window": np.flatnonzero(window), "lit": np.flatnonzero(lit),
+             "lamp": np.arange(len(walls), len(walls) + 30),
+             "smear": np.arange(len(walls) + 30, len(walls) + 42),
+             "tiles": np.arange(len(pos) - 15, len(pos))}
+    return scene, parts
+
+
+def outside_room(points: np.ndarray, tol: float = 0.05) -> np.ndarray:
+    return np.any((points < ROOM_LO - tol) | (points > ROOM_HI + tol), axis=1)
+
+
+def test_the_old_rule_takes_lit_walls_and_backdrop_for_lights():
+    scene, parts = room_scene()
+    old = emitter_mask(scene)
+    assert old[parts["lit"]].all() and old[parts["smear"]].all() and old[parts["tiles"]].all()
+
+
+@pytest.mark.parametrize("method", ["recursive", "bracket"])
+def test_lights_are_the_lamp_and_the_window(method):
+    scene, parts = room_scene(method)
+    found = search_lights(scene)
+    emitters = found.emitters
+    assert emitters[parts["lamp"]].all() and emitters[parts["window"]].mean() > 0.9
+    assert not emitters[parts["lit"]].any()  # a lit ceiling, explained by the lamp
+    assert not emitters[parts["smear"]].any() and not emitters[parts["tiles"]].any()
+    assert not outside_room(scene.positions[emitters]).any()
+    lights = found.lights
+    assert len(lights) == 2
+    window, lamp = lights  # brightest power first: the window's area is larger
+    assert np.linalg.norm(lamp.position - LAMP) < 0.05
+    assert np.linalg.norm(window.position - WINDOW) < 0.1
+    assert lamp.radius < 0.1 and 0.3 < window.radius < 1.0
+    # power: radiance x projected area (2 pi sigma^2 opacity per splat), summed
+    area = 2 * np.pi * 0.02**2 * 0.9
+    np.testing.assert_allclose(lamp.power, 30 * area * np.array([200.0, 160.0, 100.0]),
+                               rtol=1e-4)
+    np.testing.assert_allclose(lamp.colour, [1.0, 0.8, 0.5], rtol=1e-4)
+    assert lamp.power_source == ("measured" if method == "bracket" else "predicted")
+    assert lamp.test["mean_radiance"] > lamp.test["diffuse_limit"]
+    summary = found.summary()
+    assert summary["lights"][1]["power_source"] == lamp.power_source
+    assert "rho" in summary["rule"] or "0.9" in summary["rule"]
+
+
+def with_far_backdrop(scene: SplatScene) -> SplatScene:
+    """Plus a far cloud of dim splats 10 m off, as an SfM fit leaves beyond a window."""
+    rng = np.random.default_rng(5)
+    far = np.array([12.0, 1.5, 0.0]) + rng.normal(0, 1.0, (40, 3))
+    return SplatScene.from_activated(
+        np.concatenate([scene.positions, far]),
+        np.concatenate([scene.base_colours, np.full((40, 3), 0.3)]),
+        np.concatenate([scene.scales, np.full((40, 3), 0.3)]),
+        np.concatenate([scene.opacities, np.full(40, 0.9)]), metadata=scene.metadata)
+
+
+def test_default_probe_is_inside_the_room_in_free_space():
+    scene = with_far_backdrop(room_scene()[0])
+    lo, hi = scene.bounds()
+    assert outside_room(((lo + hi) / 2)[None], tol=0.0).any()  # the old default: outside
+    choice = default_probe(scene)
+    assert not outside_room(choice.position[None], tol=-0.3).any()
+    assert choice.position[1] == pytest.approx(1.5, abs=0.3)  # the cameras' height
+    assert clearance(scene, choice.position[None])[0] > 0.2
+    assert "camera" in choice.how
+    # without camera centres: the splats' median, still inside
+    bare = with_far_backdrop(room_scene(with_cameras=False)[0])
+    assert not outside_room(default_probe(bare).position[None], tol=-0.3).any()
+
+
+def test_a_probe_in_a_crowd_moves_to_free_space():
+    scene, _ = room_scene()
+    rng = np.random.default_rng(3)
+    crowd = np.array([0.0, 1.5, 0.0]) + rng.normal(0, 0.05, (40, 3))  # a plant at the start
+    cams = np.array(scene.metadata["cameras"]["centres"])
+    cams[:] = [0.0, 1.5, 0.0]
+    both = SplatScene.from_activated(
+        np.concatenate([scene.positions, crowd]),
+        np.concatenate([scene.base_colours, np.full((40, 3), 0.2)]),
+        np.concatenate([scene.scales, np.full((40, 3), 0.03)]),
+        np.concatenate([scene.opacities, np.full(40, 0.9)]),
+        metadata={**scene.metadata, "cameras": {"centres": cams.tolist()}})
+    choice = default_probe(both)
+    assert choice.moved > 0.1 and "moved" in choice.how
+    assert clearance(both, choice.position[None])[0] >= 0.1 * capture_space(both).median_depth()
+    assert not outside_room(choice.position[None], tol=-0.1).any()
+
+
+def test_no_candidates_no_lights():
+    scene, _ = room_scene()
+    dim = SplatScene.from_activated(scene.positions, np.minimum(scene.base_colours, 0.5),
+                                    scene.scales, scene.opacities, metadata=scene.metadata)
+    assert find_lights(dim) == []
