@@ -19,7 +19,9 @@ from gaslight_usd.uplift import calibrate
 
 POLYHAVEN = shared.folder_path(shared.POLYHAVEN)
 needs_polyhaven = pytest.mark.skipif(not (POLYHAVEN / "park.exr").exists(),
-                                     reason="shared Poly Haven panoramas absent")
+                                     reason="the Poly Haven panoramas are not here: provide "
+                                     "../shared/data/hdri-polyhaven-512 beside the checkout "
+                                     "(see tests/data/README.md)")
 
 
 # -- the trust table --------------------------------------------------------------------
