@@ -51,7 +51,7 @@ def fit(ctx: StageContext) -> StageResult:
                                refine_poses=bool(opts.get("refine_poses")))
     seed = int(opts.get("seed") if opts.get("seed") is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
-    data = load_fit_data(hdr_dir, poses, downscale=cfg.downscale)
+    data = load_fit_data(hdr_dir, poses, working_size=cfg.working_size)
     ckpt = Path(opts.get("checkpoint") or checkpoint_path(ctx.output))
     result = fit_splats(data, cfg, seed=seed, progress=ctx.progress, checkpoint=ckpt,
                         resume=bool(opts.get("resume")),

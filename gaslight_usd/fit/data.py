@@ -2,9 +2,12 @@
 
 HDR views are ``<photo stem>.exr`` files; each is matched to the posed image of
 the same stem. Missing views, extra posed images without a view, or a view
-whose size differs from its camera fail with one InputError naming the folder
-and what disagrees, before a pixel is read. Views are downscaled by an integer
-factor (box filter) with their intrinsics scaled to match.
+whose size is not its camera's (or the camera's shrunk evenly, as ``run``
+uplifts photos at the working size) fail with one InputError naming the folder
+and what disagrees, before a pixel is read. Views are read one at a time and
+shrunk to the fit's working size (area average, :mod:`gaslight_usd.resize`)
+with their intrinsics scaled to match, so memory grows with the working size,
+not with the photos' megapixels.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from ..colmap import ColmapModel
 from ..errors import InputError
 from ..imageio import read_header, read_image
 from ..poses import read_poses
+from ..resize import area_resize, fit_within
 from ..views import hdr_view_paths
 
 
@@ -55,6 +59,25 @@ def scale_camera(cam: PinholeCamera, factor: int) -> PinholeCamera:
                          name=cam.name)
 
 
+def scale_camera_to(cam: PinholeCamera, width: int, height: int) -> PinholeCamera:
+    """The camera for its image area-resized to ``width`` x ``height`` (pixel centres at
+    +0.5: ``x`` maps to ``x * width / cam.width``, so focal lengths and principal point
+    scale by the same ratios)."""
+    sx, sy = width / cam.width, height / cam.height
+    return PinholeCamera(width, height, cam.fx * sx, cam.fy * sy, cam.cx * sx, cam.cy * sy,
+                         cam.R, cam.t, name=cam.name)
+
+
+def evenly_shrunk(width: int, height: int, cam: PinholeCamera) -> bool:
+    """Whether a ``width`` x ``height`` view is its camera's image shrunk evenly (each
+    side the camera's times one ratio, rounded), as the uplift writes working-size views."""
+    if (width, height) == (cam.width, cam.height):
+        return True
+    if width > cam.width or height > cam.height:
+        return False
+    return fit_within(cam.width, cam.height, max(width, height)) == (width, height)
+
+
 def box_downscale(image: np.ndarray, factor: int) -> np.ndarray:
     if factor == 1:
         return image
@@ -82,9 +105,10 @@ def match_views(hdr_dir: Path, model: ColmapModel) -> list[tuple[PinholeCamera, 
     for stem in sorted(posed):
         cam, path = posed[stem], exrs[stem]
         spec = read_header(path)
-        if (spec.width, spec.height) != (cam.width, cam.height):
+        if not evenly_shrunk(spec.width, spec.height, cam):
             raise InputError(f"view is {spec.width}x{spec.height} but its camera "
-                             f"{cam.name!r} is {cam.width}x{cam.height}", path)
+                             f"{cam.name!r} is {cam.width}x{cam.height} (nor that size "
+                             "shrunk evenly)", path)
         pairs.append((cam, path))
     return pairs
 
@@ -134,8 +158,30 @@ def check_overlap(cameras: list[PinholeCamera], points: np.ndarray | None = None
                          "cannot be fitted to a region only one photo sees")
 
 
-def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) -> FitData:
-    """Read poses and HDR views, check they agree and overlap, downscale."""
+def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: int = 1
+              ) -> tuple[np.ndarray, PinholeCamera, Any]:
+    """One HDR view at fitting size, its camera to match, and the image read.
+
+    The view's camera is ``cam`` scaled to the view's own size (working-size
+    views from ``run``), then both are shrunk so the long side is at most
+    ``working_size`` (0: the view's size), then by the integer ``downscale``.
+    The full-size pixels are dropped on return: one view at a time is held.
+    """
+    img = read_image(path)
+    h, w = img.pixels.shape[:2]
+    cam = scale_camera_to(cam, w, h)
+    size = fit_within(w, h, working_size)
+    pixels = area_resize(np.maximum(img.pixels, 0.0), *size)
+    cam = scale_camera_to(cam, *size)
+    pixels = box_downscale(pixels, downscale)
+    img.pixels = np.empty((0, 0, 3), np.float32)
+    return np.ascontiguousarray(pixels, np.float32), scale_camera(cam, downscale), img
+
+
+def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
+                  working_size: int = 0) -> FitData:
+    """Read poses and HDR views, check they agree and overlap, shrink to the working size
+    (long side, 0: the views' own) and then by the integer ``downscale``."""
     hdr_dir = Path(hdr_dir)
     model = read_poses(poses)
     pairs = match_views(hdr_dir, model)
@@ -144,12 +190,12 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
     space, attrs = "", {}
     for cam, path in pairs:
         paths.append(path)
-        img = read_image(path)
+        pixels, scaled, img = load_view(path, cam, working_size, downscale)
         if not space:
             space = img.colour_space
             attrs = {k: v for k, v in img.metadata.items() if k.startswith("gaslight:")}
         names.append(Path(cam.name).stem)
-        cams.append(scale_camera(cam, downscale))
-        images.append(box_downscale(np.maximum(img.pixels, 0.0), downscale))
+        cams.append(scaled)
+        images.append(pixels)
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
                    attributes=attrs, downscale=downscale, paths=paths)
