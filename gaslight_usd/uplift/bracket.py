@@ -91,7 +91,13 @@ def photo_infos(paths: Sequence[Path]) -> list[PhotoInfo]:
 
 
 def _shape(photo: View | PhotoInfo) -> tuple[int, ...]:
-    return photo.shape if isinstance(photo, PhotoInfo) else photo.encoded.shape
+    """The photo's size as shot (a View read shrunk remembers it)."""
+    if isinstance(photo, PhotoInfo):
+        return photo.shape
+    if "photo_size" in photo.metadata:
+        w, h = photo.metadata["photo_size"]
+        return (h, w, photo.encoded.shape[2])
+    return photo.encoded.shape
 
 
 def _small_log_luminance(view: View, side: int = 48) -> tuple[np.ndarray, np.ndarray]:
@@ -203,16 +209,24 @@ def has_brackets(views: Sequence[View | PhotoInfo], group_file: Path | None = No
     return any(b.is_bracket for b in group_by_exif(views))
 
 
+CONFIRM_SIZE = 512
+"""Long side the candidate photos are read at to confirm a bracket by its pixels."""
+
+
 def find_brackets(paths: Sequence[Path], input_space: str, working_space: str,
                   config_uri: str | None = None) -> list[Bracket]:
-    """Brackets among photo files: EXIF candidates from headers, confirmed by pixels."""
+    """Brackets among photo files: EXIF candidates from headers, confirmed by pixels.
+
+    The pixels are read shrunk to :data:`CONFIRM_SIZE` (the check compares 48-pixel
+    thumbnails): every candidate of a 12 MP set at full size would hold gigabytes.
+    """
     from ..views import load_views
 
     candidates = [b for b in group_by_exif(photo_infos(paths)) if b.is_bracket]
     if not candidates:
         return []
     views = load_views([p.path for b in candidates for p in b.views], input_space,
-                       working_space, config_uri)
+                       working_space, config_uri, long_side=CONFIRM_SIZE)
     return [b for b in group_by_exif(views) if b.is_bracket]
 
 
