@@ -5,8 +5,9 @@ fewer pixels; shrinking them first makes time and memory grow with the working
 size, not with the camera. The resample is an area average: each output pixel
 is the mean of the input area it covers (fractional pixels weighted by their
 share), so a light's total power is kept and an integer ratio gives exactly
-the plain box filter. It runs on prefix sums, one axis at a time and in row
-blocks, so a 12 MP float image is shrunk without a full-size float64 copy.
+the plain box filter. It is two sparse matrix products (rows, then columns;
+each output pixel reads only the few input pixels it covers), so a 12 MP
+float image is shrunk without any full-size scratch copy.
 
 Pixel-centre convention: pixel ``i`` covers ``[i, i + 1)``, its centre at
 ``i + 0.5``. Shrinking ``W`` to ``w`` maps ``x`` to ``x * w / W``, so a pinhole
@@ -15,10 +16,10 @@ camera's ``fx`` and ``cx`` scale by ``w / W`` (and ``fy``, ``cy`` by ``h / H``).
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-ROW_BLOCK = 256
-"""Rows resampled at once (bounds the float64 scratch to a few tens of MB)."""
+import numpy as np
+from scipy import sparse
 
 
 def fit_within(width: int, height: int, long_side: int) -> tuple[int, int]:
@@ -34,18 +35,18 @@ def fit_within(width: int, height: int, long_side: int) -> tuple[int, int]:
     return max(1, round(width * s)), max(1, round(height * s))
 
 
-def _area_axis(a: np.ndarray, n_out: int, axis: int) -> np.ndarray:
-    """Area-average ``a`` along ``axis`` to ``n_out`` samples (float64 out)."""
-    n_in = a.shape[axis]
-    a = np.moveaxis(np.asarray(a, np.float64), axis, 0)
-    prefix = np.concatenate([np.zeros((1, *a.shape[1:])), np.cumsum(a, axis=0)])
-    edges = np.arange(n_out + 1) * (n_in / n_out)
-    whole = np.minimum(np.floor(edges).astype(np.int64), n_in)
-    frac = (edges - whole)[(...,) + (None,) * (a.ndim - 1)]
-    inside = np.minimum(whole, n_in - 1)
-    at_edge = prefix[whole] + frac * a[inside]
-    out = (at_edge[1:] - at_edge[:-1]) * (n_out / n_in)
-    return np.moveaxis(out, 0, axis)
+def area_weights(n_in: int, n_out: int) -> sparse.csr_matrix:
+    """(n_out, n_in) sparse float32 weights: the share of output cell ``o`` (covering
+    ``[o, o + 1) * n_in / n_out``) that each input cell covers; rows sum to 1."""
+    ratio = n_in / n_out
+    lo = np.arange(n_out) * ratio
+    hi = lo + ratio
+    cells = np.floor(lo).astype(np.int64)[:, None] + np.arange(math.ceil(ratio) + 1)[None]
+    cover = np.minimum(hi[:, None], cells + 1) - np.maximum(lo[:, None], cells)
+    keep = (cover > 0) & (cells < n_in)
+    rows = np.broadcast_to(np.arange(n_out)[:, None], cells.shape)
+    return sparse.csr_matrix(((cover / ratio)[keep].astype(np.float32),
+                              (rows[keep], cells[keep])), shape=(n_out, n_in))
 
 
 def area_resize(image: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -63,7 +64,9 @@ def area_resize(image: np.ndarray, width: int, height: int) -> np.ndarray:
         f = w // width  # an integer ratio: the plain box filter (what fits always used)
         return image.reshape(height, f, width, f, *image.shape[2:]).mean(
             axis=(1, 3)).astype(image.dtype)
-    narrow = np.empty((h, width, *image.shape[2:]), np.float64)
-    for r in range(0, h, ROW_BLOCK):  # row blocks bound the float64 scratch
-        narrow[r:r + ROW_BLOCK] = _area_axis(image[r:r + ROW_BLOCK], width, axis=1)
-    return _area_axis(narrow, height, axis=0).astype(image.dtype)
+    rest = image.shape[2:]
+    flat = np.asarray(image, np.float32).reshape(h, -1)
+    low = area_weights(h, height) @ flat  # rows first: (height, W * C), a few MB
+    low = low.reshape(height, w, -1).transpose(1, 0, 2).reshape(w, -1)
+    out = (area_weights(w, width) @ low).reshape(width, height, -1).transpose(1, 0, 2)
+    return np.ascontiguousarray(out.reshape(height, width, *rest)).astype(image.dtype)
