@@ -135,3 +135,12 @@ def test_a_run_on_12_megapixel_photos_stays_within_the_working_size_memory(tmp_p
     assert (hdr.width, hdr.height) == (512, 384)  # uplifted at the fit's uplift size
     fit = next(s for s in report["stages"] if s["name"] == "fit")
     assert fit["counts"]["views"] == 8
+
+
+def test_run_uplifts_at_the_presets_uplift_size_unless_told_to_keep_full_size():
+    from gaslight_usd.pipeline import with_working_size
+
+    assert with_working_size({})["uplift"]["max_size"] == 512  # fast by default
+    assert with_working_size({"fit": {"preset": "best"}})["uplift"]["max_size"] == 2048
+    kept = with_working_size({"uplift": {"max_size": 0}, "fit": {"preset": "fast"}})
+    assert kept["uplift"]["max_size"] == 0  # --keep-hdr full
