@@ -111,7 +111,7 @@ def _posed_set(root: Path, photos: list[Path], width: int, height: int) -> Path:
 
 def _peak_of_run(photos: Path, sparse: Path, out: Path) -> tuple[float, dict]:
     cmd = [sys.executable, "-c", RUN_MAIN, "run", str(photos), "--poses", str(sparse),
-           "-o", str(out), "--to", "splats", "--preset", "fast", "-q"]
+           "-o", str(out), "--to", "splats", "--preset", "fast", "--budget", "2000", "-q"]
     code, _, peak = run_measured(cmd, out.with_suffix(".log"))
     assert code == 0, out.with_suffix(".log").read_text()[-2000:]
     return peak, json.loads((out / "report.json").read_text())
@@ -144,3 +144,22 @@ def test_run_uplifts_at_the_presets_uplift_size_unless_told_to_keep_full_size():
     assert with_working_size({"fit": {"preset": "best"}})["uplift"]["max_size"] == 2048
     kept = with_working_size({"uplift": {"max_size": 0}, "fit": {"preset": "fast"}})
     assert kept["uplift"]["max_size"] == 0  # --keep-hdr full
+
+
+def test_the_scale_bench_measures_a_childs_peak_memory(tmp_path):
+    grab = "import numpy as np; a = np.ones(400 * 2**20 // 8); a += 1"  # 400 MiB touched
+    code, seconds, peak = run_measured([sys.executable, "-c", grab], tmp_path / "log")
+    assert code == 0 and seconds > 0
+    assert 400 / 1024 < peak < 400 / 1024 + 0.3
+    code, _, _ = run_measured([sys.executable, "-c", "raise SystemExit(3)"], tmp_path / "log")
+    assert code == 3
+
+
+def test_the_scale_bench_cases_and_sizes():
+    from gaslight_usd.bench.suite_scale import cases, photo_size
+
+    assert photo_size(12.0) == (4032, 3024) and photo_size(0.2) == (480, 360)
+    assert photo_size(1.0) == (1155, 866)
+    assert cases({"quick": True}) == [(12, 0.2), (12, 3.0)]
+    assert cases({"photos": (12, 96), "megapixels": (12.0,)}) == [(12, 12.0), (96, 12.0)]
+    assert len(cases({})) == 6
