@@ -64,7 +64,7 @@ def fit(ctx: StageContext) -> StageResult:
                                refine_poses=bool(opts.get("refine_poses")))
     seed = int(opts.get("seed") if opts.get("seed") is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
-    data = load_fit_data(hdr_dir, poses, downscale=cfg.downscale)
+    data = load_fit_data(hdr_dir, poses, working_size=cfg.working_size)
     if data.left_out:
         ctx.progress.message(f"warning: {len(data.left_out)} HDR view(s) have no pose and are "
                              f"left out of the fit: {', '.join(data.left_out)}")

@@ -2,7 +2,8 @@
 
 Options: ``group_file`` (explicit grouping), ``response`` (``ocio``: the input
 space's transform, default; ``debevec``: recovered from each bracket),
-``align`` (default on), ``save_stacks``. Refuses with an InputError when the
+``align`` (default on), ``save_stacks``, ``max_size`` (long side the photos are
+shrunk to as they are read; 0: as shot). Refuses with an InputError when the
 photos hold no bracket. One EXR per view, named after the bracket's middle
 exposure (or its name in the grouping file); photos that form no bracket of
 their own are linearised alone. How the photos were grouped is summarised, kept
@@ -36,7 +37,8 @@ def merge(ctx: StageContext) -> StageResult:
     folder = ctx.input(Kind.LDR_VIEWS).path
     group_file = ctx.options.get("group_file")
     group_file = Path(group_file) if group_file else None
-    views = load_views(folder, s.input_space, s.working_space, s.ocio_config)
+    views = load_views(folder, s.input_space, s.working_space, s.ocio_config,
+                       int(ctx.options.get("max_size") or 0))
     grouping = group_views(views, group_file)
     brackets = grouping.brackets
     ctx.progress.message(grouping.lines()[0])

@@ -1,7 +1,10 @@
 """The whole chain as one call: what ``gaslight2usd run`` and ``batch`` use.
 
 Options are grouped by step name (``uplift``, ``poses``, ``fit``, ``export``,
-``hdri``) and passed to whichever converter runs that step.
+``hdri``) and passed to whichever converter runs that step. Unless the job
+says otherwise (``uplift.max_size``; 0 keeps the photos' size), photos are
+uplifted at the fit preset's working size (:func:`..fit.presets.uplift_size`):
+work and memory then follow the preset, not the camera's megapixels.
 """
 
 from __future__ import annotations
@@ -45,13 +48,25 @@ def artifacts_from_paths(paths: list[Path]) -> list[Artifact]:
     return list(found.values())
 
 
+def with_working_size(options: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
+    """``options`` with ``uplift.max_size`` set from the fit preset when not given."""
+    from .fit.presets import PRESETS, uplift_size
+
+    out = {step: dict(opts) for step, opts in options.items()}
+    uplift = out.setdefault("uplift", {})
+    if uplift.get("max_size") is None:
+        name = out.get("fit", {}).get("preset") or "fast"
+        uplift["max_size"] = uplift_size(PRESETS[name]) if name in PRESETS else 0
+    return out
+
+
 def run_job(job: Job, registry: Registry | None = None, progress: Progress | None = None,
             command: list[str] | None = None) -> dict[Kind, Artifact]:
     settings = Settings.resolved(**job.settings)
     progress = progress or Progress()
     runner = ChainRun(job.out_dir, settings, registry or default_registry(), progress, command)
     artifacts = runner.run(artifacts_from_paths(job.inputs), job.targets, choose=job.choose,
-                           options=job.options, resume=job.resume)
+                           options=with_working_size(job.options), resume=job.resume)
     write_run_pictures(job.out_dir, artifacts, settings, progress)
     return artifacts
 

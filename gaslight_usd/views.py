@@ -5,11 +5,18 @@ is linearised into the working space. Exposures from EXIF are normalised to
 the set's median, so HDR values are *relative radiance*: 1.0 is the radiance
 that reads as linear 1.0 at the reference exposure. That scale is recorded in
 every output (``gaslight:exposure_scale`` and ``gaslight:reference_ev``).
+
+Photos are read one at a time (:func:`iter_views`): the set's reference
+exposure comes from the files' headers, so no stage holds every decoded photo
+at once. ``long_side`` shrinks each photo as it is read (area average of the
+encoded values, as an image editor's resize gives; pixels inside a clipped
+lamp stay clipped), so a 12 MP photo costs one decode, then its working size.
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,7 +24,16 @@ from typing import Any
 import numpy as np
 
 from . import colour
-from .imageio import IMAGE_EXTENSIONS, LDR_EXTENSIONS, Image, list_images, read_image, write_exr
+from .imageio import (
+    IMAGE_EXTENSIONS,
+    LDR_EXTENSIONS,
+    exposure_from_spec,
+    list_images,
+    read_header,
+    read_image,
+    write_exr,
+)
+from .resize import area_resize, fit_within
 
 logger = logging.getLogger(__name__)
 
@@ -63,26 +79,39 @@ class View:
         return np.where(self.clipped_mask, np.maximum(recorded, 1e-6), 0.0).astype(np.float32)
 
 
-def load_views(paths: list[Path] | Path, input_space: str, working_space: str,
-               config_uri: str | None = None) -> list[View]:
-    """Read photos (a folder or a list), linearise them, normalise exposure."""
+def reference_ev(paths: list[Path]) -> float:
+    """The set's reference EV: the median EXIF EV of the photos that carry one (0 if none),
+    read from the headers alone."""
+    evs = [e.ev for e in (exposure_from_spec(read_header(p)) for p in paths) if e.known]
+    return float(np.median(evs)) if evs else 0.0
+
+
+def iter_views(paths: list[Path] | Path, input_space: str, working_space: str,
+               config_uri: str | None = None, long_side: int = 0) -> Iterator[View]:
+    """Photos (a folder or a list) one at a time: linearised, exposure-normalised, and
+    shrunk so the long side is at most ``long_side`` (0: as shot)."""
     if isinstance(paths, Path):
         paths = list_images(paths, LDR_EXTENSIONS)
-    images: list[Image] = [read_image(p, colour_space=input_space, config_uri=config_uri)
-                           for p in paths]
-    evs = [im.exposure.ev if im.exposure.known else None for im in images]
-    known = [e for e in evs if e is not None]
-    warn_missing_exposure([im.path.name for im, ev in zip(images, evs, strict=True)
-                           if ev is None], len(images))
-    reference = float(np.median(known)) if known else 0.0
-    views = []
-    for im, ev in zip(images, evs, strict=True):
-        linear = colour.convert(im.pixels, im.colour_space, working_space, config_uri)
+    missing = [p.name for p in paths if not exposure_from_spec(read_header(p)).known]
+    warn_missing_exposure(missing, len(paths))
+    reference = reference_ev(paths)
+    for path in paths:
+        im = read_image(path, colour_space=input_space, config_uri=config_uri)
+        h, w = im.pixels.shape[:2]
+        encoded = area_resize(im.pixels, *fit_within(w, h, long_side))
+        ev = im.exposure.ev if im.exposure.known else None
+        linear = colour.convert(encoded, im.colour_space, working_space, config_uri)
         ratio = 2.0 ** (ev - reference) if ev is not None else 1.0
-        views.append(View(name=im.path.stem, path=im.path, encoded=im.pixels, linear=linear,
-                          exposure_ratio=ratio, ev=ev,
-                          metadata={"reference_ev": reference, "source_space": im.colour_space}))
-    return views
+        yield View(name=im.path.stem, path=im.path, encoded=encoded, linear=linear,
+                   exposure_ratio=ratio, ev=ev,
+                   metadata={"reference_ev": reference, "source_space": im.colour_space,
+                             "photo_size": [w, h]})
+
+
+def load_views(paths: list[Path] | Path, input_space: str, working_space: str,
+               config_uri: str | None = None, long_side: int = 0) -> list[View]:
+    """Every photo at once (bracket grouping needs them together); see :func:`iter_views`."""
+    return list(iter_views(paths, input_space, working_space, config_uri, long_side))
 
 
 def warn_missing_exposure(names: list[str], total: int) -> None:
@@ -110,6 +139,8 @@ def hdr_attributes(view: View, method: str, extra: dict[str, Any] | None = None)
     }
     if view.ev is not None:
         attrs["gaslight:ev"] = float(view.ev)
+    if "photo_size" in view.metadata:
+        attrs["gaslight:photo_size"] = [int(v) for v in view.metadata["photo_size"]]
     attrs.update(extra or {})
     return attrs
 

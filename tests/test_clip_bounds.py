@@ -55,7 +55,7 @@ def test_fit_floor_bounds_the_mean_of_a_downscaled_pixel():
     floor = np.zeros((2, 4), np.float32)
     floor[0, 0] = 5.0  # one clipped photo pixel, recorded luminance 5
     w = np.array([0.2126, 0.7152, 0.0722], np.float32)
-    out = fit_floor(floor, image, w, 2)
+    out = fit_floor(floor, image, w, (4, 2), 2)
     assert out.shape == (1, 2)
     assert abs(out[0, 0] - (5.0 + 3 * 1.0) / 4) < 1e-5  # its block: a bound on the mean
     assert out[0, 1] == 0.0  # nothing clipped there: measured

@@ -34,7 +34,7 @@ def synthetic(tmp_path_factory):
 
 
 def tiny(**kw):
-    base = dict(downscale=1, iterations=24, init_points=400, densify_every=8,
+    base = dict(working_size=0, iterations=24, init_points=400, densify_every=8,
                 checkpoint_every=8, sh_raise_every=12)
     return preset("fast").updated(**{**base, **kw})
 

@@ -79,7 +79,7 @@ def test_refinement_brings_perturbed_poses_back():
     truth, data = synthetic_data(views=10, size=64)
     noisy = perturbed(data.cameras, 1.5, 0.02, keep=lambda i: i == 4)  # the held-out view
     before = relative_rotation_error(noisy, data.cameras)
-    cfg = preset("fast").updated(downscale=1, iterations=500, init_points=1500,
+    cfg = preset("fast").updated(working_size=0, iterations=500, init_points=1500,
                                  densify_every=40, refine_poses=True)
     result = fit_splats(dataclasses.replace(data, cameras=noisy), cfg, seed=0)
     after = relative_rotation_error(result.cameras, data.cameras)

@@ -201,7 +201,7 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     cfg = preset(preset_name)
     if method == "recursive, fills as targets":
         cfg = cfg.updated(clip_bounds=False)
-    data = load_fit_data(hdr, folder / "sparse" / "0", cfg.downscale)
+    data = load_fit_data(hdr, folder / "sparse" / "0", working_size=cfg.working_size)
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])
     result = fit_splats(data, cfg, seed=seed, progress=progress)

@@ -127,10 +127,10 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     seed = int(options.get("seed", 0))
     rows: list[dict[str, Any]] = []
     if quick or not _example_ready():
-        cases = [("synthetic", "fast", {"downscale": 1, "iterations": 120,
+        cases = [("synthetic", "fast", {"working_size": 0, "iterations": 120,
                                         "init_points": 1500, "densify_every": 30})]
         if not quick:
-            cases.append(("synthetic", "balanced", {"downscale": 1, "iterations": 600}))
+            cases.append(("synthetic", "balanced", {"working_size": 0, "iterations": 600}))
     else:
         presets = options.get("presets") or ("fast", "balanced")
         cases = [(scene, name, {}) for name in presets for scene in ("room", "room-sfm")]
@@ -141,9 +141,11 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
             data = synthetic_data(seed=seed)[1]
         elif scene == "room-sfm":
             data = load_fit_data(EXAMPLE / "truth", sfm_poses_in_true_frame(
-                Path(options.get("out") or ".") / "fit-sfm-poses", seed), cfg.downscale)
+                Path(options.get("out") or ".") / "fit-sfm-poses", seed),
+                working_size=cfg.working_size)
         else:
-            data = load_fit_data(EXAMPLE / "truth", EXAMPLE / "sparse" / "0", cfg.downscale)
+            data = load_fit_data(EXAMPLE / "truth", EXAMPLE / "sparse" / "0",
+                                 working_size=cfg.working_size)
         t0 = time.perf_counter()
         result = fit_splats(data, cfg, seed=seed, progress=options.get("progress"))
         seconds = time.perf_counter() - t0

@@ -28,6 +28,7 @@ suites:
 examples:
   gaslight2usd bench --suite uplift --quick -o out/bench
   gaslight2usd bench -o out/bench            # every suite, full size
+  gaslight2usd bench --suite scale --photos 24 --megapixels 0.2,12 -o out/bench
 """
 
 
@@ -52,10 +53,28 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "balanced; balanced takes about 50 min on 2 cores)")
     p.add_argument("--method", action="append", default=[], metavar="NAME",
                    help="uplift suite: only these methods (repeatable; default: all)")
+    p.add_argument("--photos", type=_numbers(int), metavar="N[,N...]",
+                   help="scale suite: photo counts (e.g. 12,24,48,96)")
+    p.add_argument("--megapixels", type=_numbers(float), metavar="MP[,MP...]",
+                   help="scale suite: photo sizes in megapixels (e.g. 0.2,3,12)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REPORT_DIR",
                    help="folder for the reports (created)")
     add_common(p)
     p.set_defaults(handler=run)
+
+
+def _numbers(kind: type) -> Any:
+    """An argparse type: a comma-separated list of positive ``kind`` numbers."""
+    def parse(text: str) -> tuple:
+        try:
+            values = tuple(kind(t) for t in text.split(",") if t.strip())
+        except ValueError:
+            values = ()
+        if not values or any(v <= 0 for v in values):
+            raise argparse.ArgumentTypeError(f"expected positive numbers like 12,24, got "
+                                             f"{text!r}")
+        return values
+    return parse
 
 
 def _format(value: Any) -> str:
@@ -105,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
     names = args.suite or list(discovery.suites)
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
                "verbose": args.verbose, "presets": tuple(args.preset) or None,
-               "methods": list(args.method) or None}
+               "methods": list(args.method) or None,
+               "photos": args.photos, "megapixels": args.megapixels}
     results = []
     for name in names:
         progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")

@@ -22,6 +22,11 @@ run can start anywhere: a folder of photos, an EXR folder of HDR views, a COLMAP
 model or transforms.json (poses), or a 3DGS PLY. What is missing is made; what
 you give is used as is.
 
+Photos are uplifted at the size the fit works at (the preset's working size,
+at least 512 pixels on the long side), so a 12 MP photo costs what a small one
+does; --keep-hdr full keeps full-resolution HDR views in OUT/hdr instead (the
+fit still shrinks them as it reads them).
+
 OUT holds: hdr/ (one EXR per photo), sparse/ (COLMAP model + frame.json),
 splats.ply, scene.usda (+ .usdc layers), hdri/ (lat-long EXRs; with --cube also
 cube maps), contact-sheet.png (the inputs, HDR views and HDRIs to look at) and
@@ -76,6 +81,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--predictor", help="exposure predictor for --method recursive")
     p.add_argument("--preset", choices=["fast", "balanced", "best"], default="fast",
                    help="fitting effort (default: fast)")
+    p.add_argument("--keep-hdr", choices=["work", "full"], default="work",
+                   help="size of the HDR views in OUT/hdr: work (the fit's working size, "
+                        "default) or full (the photos' own; slower, more memory)")
     p.add_argument("--budget", type=positive_int, metavar="N", help="maximum splat count")
     p.add_argument("--refine-poses", action="store_true",
                    help="optimise small corrections to the training views' poses while "
@@ -118,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
         targets=args.to,
         choose=choose,
         options=step_options({
-            "uplift": {"predictor": args.predictor},
+            "uplift": {"predictor": args.predictor,
+                       "max_size": 0 if args.keep_hdr == "full" else None},
             "poses": {"camera_height": args.camera_height, "scale": args.scale,
                       "scale_from": args.scale_from},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,

@@ -1,6 +1,6 @@
 """Fitting HDR Gaussian splats to posed linear HDR views.
 
-``load_fit_data(hdr_dir, poses, downscale)`` -> :class:`FitData` (checked);
+``load_fit_data(hdr_dir, poses, working_size=...)`` -> :class:`FitData` (checked);
 ``fit_splats(data, config, seed, progress, checkpoint, resume)`` ->
 :class:`FitResult` (scene, metrics, history); presets in :data:`PRESETS`.
 """

@@ -2,9 +2,12 @@
 
 HDR views are ``<photo stem>.exr`` files; each is matched to the posed image of
 the same stem. Missing views, extra posed images without a view, or a view
-whose size differs from its camera fail with one InputError naming the folder
-and what disagrees, before a pixel is read. Views are downscaled by an integer
-factor (box filter) with their intrinsics scaled to match.
+whose size is not its camera's (or the camera's shrunk evenly, as ``run``
+uplifts photos at the working size) fail with one InputError naming the folder
+and what disagrees, before a pixel is read. Views are read one at a time and
+shrunk to the fit's working size (area average, :mod:`gaslight_usd.resize`)
+with their intrinsics scaled to match, so memory grows with the working size,
+not with the photos' megapixels.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from ..colour import luminance_weights
 from ..errors import InputError
 from ..imageio import read_channel, read_header, read_image
 from ..poses import read_poses
+from ..resize import area_resize, fit_within
 from ..views import CLIP_FLOOR_CHANNEL, hdr_view_paths
 
 
@@ -69,6 +73,25 @@ def scale_camera(cam: PinholeCamera, factor: int) -> PinholeCamera:
                          name=cam.name)
 
 
+def scale_camera_to(cam: PinholeCamera, width: int, height: int) -> PinholeCamera:
+    """The camera for its image area-resized to ``width`` x ``height`` (pixel centres at
+    +0.5: ``x`` maps to ``x * width / cam.width``, so focal lengths and principal point
+    scale by the same ratios)."""
+    sx, sy = width / cam.width, height / cam.height
+    return PinholeCamera(width, height, cam.fx * sx, cam.fy * sy, cam.cx * sx, cam.cy * sy,
+                         cam.R, cam.t, name=cam.name)
+
+
+def evenly_shrunk(width: int, height: int, cam: PinholeCamera) -> bool:
+    """Whether a ``width`` x ``height`` view is its camera's image shrunk evenly (each
+    side the camera's times one ratio, rounded), as the uplift writes working-size views."""
+    if (width, height) == (cam.width, cam.height):
+        return True
+    if width > cam.width or height > cam.height:
+        return False
+    return fit_within(cam.width, cam.height, max(width, height)) == (width, height)
+
+
 def box_downscale(image: np.ndarray, factor: int) -> np.ndarray:
     if factor == 1:
         return image
@@ -78,9 +101,10 @@ def box_downscale(image: np.ndarray, factor: int) -> np.ndarray:
         axis=(1, 3)).astype(np.float32)
 
 
-def fit_floor(floor: np.ndarray, image: np.ndarray, weights: np.ndarray, factor: int
-              ) -> np.ndarray:
-    """A full-size clip floor at fitting resolution.
+def fit_floor(floor: np.ndarray, image: np.ndarray, weights: np.ndarray,
+              size: tuple[int, int], downscale: int = 1) -> np.ndarray:
+    """A full-size clip floor at fitting resolution (``size`` = (width, height) of the
+    area resample, then the integer ``downscale``).
 
     A fitting pixel that covers any clipped photo pixel is a bound: the mean, over
     its photo pixels, of the clipped ones' floors and the measured ones' luminance
@@ -88,8 +112,9 @@ def fit_floor(floor: np.ndarray, image: np.ndarray, weights: np.ndarray, factor:
     """
     clipped = floor > 0
     bound = np.where(clipped, floor, image @ weights.astype(np.float32))[..., None]
-    low = box_downscale(bound.astype(np.float32), factor)[..., 0]
-    share = box_downscale(clipped.astype(np.float32)[..., None], factor)[..., 0]
+    low = box_downscale(area_resize(bound.astype(np.float32), *size), downscale)[..., 0]
+    share = box_downscale(area_resize(clipped.astype(np.float32)[..., None], *size),
+                          downscale)[..., 0]
     return np.where(share > 0, np.maximum(low, 1e-6), 0.0).astype(np.float32)
 
 
@@ -118,9 +143,10 @@ def match_views(hdr_dir: Path, model: ColmapModel, left_out: list[str] | None = 
     for stem in sorted(posed):
         cam, path = posed[stem], exrs[stem]
         spec = read_header(path)
-        if (spec.width, spec.height) != (cam.width, cam.height):
+        if not evenly_shrunk(spec.width, spec.height, cam):
             raise InputError(f"view is {spec.width}x{spec.height} but its camera "
-                             f"{cam.name!r} is {cam.width}x{cam.height}", path)
+                             f"{cam.name!r} is {cam.width}x{cam.height} (nor that size "
+                             "shrunk evenly)", path)
         pairs.append((cam, path))
     return pairs
 
@@ -170,8 +196,37 @@ def check_overlap(cameras: list[PinholeCamera], points: np.ndarray | None = None
                          "cannot be fitted to a region only one photo sees")
 
 
-def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) -> FitData:
-    """Read poses and HDR views, check they agree and overlap, downscale."""
+def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: int = 1
+              ) -> tuple[np.ndarray, PinholeCamera, Any, np.ndarray | None]:
+    """One HDR view at fitting size, its camera to match, the image read, and its clip
+    floor at fitting size (None when its photo clipped nothing, see :func:`fit_floor`).
+
+    The view's camera is ``cam`` scaled to the view's own size (working-size
+    views from ``run``), then both are shrunk so the long side is at most
+    ``working_size`` (0: the view's size), then by the integer ``downscale``.
+    The full-size pixels are dropped on return: one view at a time is held.
+    """
+    img = read_image(path)
+    h, w = img.pixels.shape[:2]
+    cam = scale_camera_to(cam, w, h)
+    size = fit_within(w, h, working_size)
+    full = np.maximum(img.pixels, 0.0)
+    pixels = area_resize(full, *size)
+    cam = scale_camera_to(cam, *size)
+    pixels = box_downscale(pixels, downscale)
+    floor = read_channel(path, CLIP_FLOOR_CHANNEL)
+    if floor is not None and np.any(floor > 0):
+        floor = fit_floor(floor, full, luminance_weights(img.colour_space), size, downscale)
+    else:
+        floor = None
+    img.pixels = np.empty((0, 0, 3), np.float32)
+    return np.ascontiguousarray(pixels, np.float32), scale_camera(cam, downscale), img, floor
+
+
+def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
+                  working_size: int = 0) -> FitData:
+    """Read poses and HDR views, check they agree and overlap, shrink to the working size
+    (long side, 0: the views' own) and then by the integer ``downscale``."""
     hdr_dir = Path(hdr_dir)
     model = read_poses(poses)
     left_out: list[str] = []
@@ -181,17 +236,14 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1) ->
     space, attrs = "", {}
     for cam, path in pairs:
         paths.append(path)
-        img = read_image(path)
+        pixels, scaled, img, floor = load_view(path, cam, working_size, downscale)
         if not space:
             space = img.colour_space
             attrs = {k: v for k, v in img.metadata.items() if k.startswith("gaslight:")}
         names.append(Path(cam.name).stem)
-        cams.append(scale_camera(cam, downscale))
-        pixels = np.maximum(img.pixels, 0.0)
-        images.append(box_downscale(pixels, downscale))
-        floor = read_channel(path, CLIP_FLOOR_CHANNEL)
-        floors.append(None if floor is None or not np.any(floor > 0) else fit_floor(
-            floor, pixels, luminance_weights(img.colour_space), downscale))
+        cams.append(scaled)
+        images.append(pixels)
+        floors.append(floor)
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
                    attributes=attrs, downscale=downscale, paths=paths, floors=floors,
                    left_out=left_out)

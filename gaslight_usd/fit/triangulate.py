@@ -40,11 +40,26 @@ def shared_scale(images: list[np.ndarray]) -> float:
     return MID_GREY / median
 
 
+def _model_at_view_size(model: ColmapModel, images: dict[str, np.ndarray]) -> ColmapModel:
+    """``model`` with every camera scaled to its view's size (itself when they agree)."""
+    from .data import scale_camera_to
+
+    sizes = {name: (img.shape[1], img.shape[0]) for name, img in images.items()}
+    if all(sizes[c.name] == (c.width, c.height) for c in model.cameras):
+        return model
+    return ColmapModel(cameras=[scale_camera_to(c, *sizes[c.name]) for c in model.cameras],
+                       image_ids=list(model.image_ids), frame=dict(model.frame),
+                       notes=list(model.notes), source=model.source)
+
+
 def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
                       progress: Progress | None = None) -> ColmapModel | None:
     """``model`` with points triangulated from its HDR views, or None when that fails.
 
-    ``view_paths`` maps each posed image name to its full-resolution HDR view.
+    ``view_paths`` maps each posed image name to its HDR view: the camera's size,
+    or that size shrunk evenly (``run`` uplifts at the working size); the model's
+    cameras are then scaled to the views' size for the triangulation, so the
+    returned model's cameras are at that size (the points are the same).
     Failure (too little texture, an image type COLMAP cannot read) is not an
     error: the caller falls back to a points-free start.
     """
@@ -56,6 +71,7 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
     work = Path(tempfile.mkdtemp(prefix="gaslight-fit-tri-"))
     try:
         images = {name: read_image(view_paths[name]).pixels for name in model.names}
+        model = _model_at_view_size(model, images)
         scale = shared_scale(list(images.values()))
         for name, image in images.items():
             target = work / name

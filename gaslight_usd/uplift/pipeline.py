@@ -37,6 +37,9 @@ class UpliftOptions:
     save_stacks: bool = False
     panorama: str = "auto"
     """auto (2:1 images are panoramas), on, off"""
+    max_size: int = 0
+    """Long side (pixels) photos are shrunk to before the uplift (0: as shot). ``run``
+    sets it from the fit's working size, so nothing works on pixels the fit drops."""
     extra: dict[str, Any] = field(default_factory=dict)
 
     @classmethod

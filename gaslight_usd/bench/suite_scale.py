@@ -1,0 +1,203 @@
+"""Bench suite "scale": the whole chain's time and peak memory against photo count and size.
+
+Users shoot sets of 20-100 photos of 12-24 MP; what must not happen is that
+time and memory grow with the camera's megapixels. Each case runs
+``gaslight2usd run PHOTOS -o OUT --preset P`` (SfM, uplift, fit, USD, HDRI) as
+a subprocess on the bundled example's photos upscaled to the case's size (EXIF
+kept, so exposures and the focal prior still hold) and reads the time of each
+stage from its ``report.json``; peak memory is the child's ``ru_maxrss`` as
+``os.wait4`` reports it: the largest resident set of the process and of any
+process it waited for (not their sum; the chain runs in one process). Sets of
+more than 24 photos repeat the 24 under new names: the work grows as with new
+photos, the scene does not (re-rendering 96 views takes too long for a bench).
+
+Default cases: 24 photos at 0.2 / 3 / 12 MP and 12 / 48 / 96 photos at 12 MP
+(fast preset); ``--photos`` and ``--megapixels`` give the grid, ``--preset``
+the presets; quick: 12 photos at 0.2 and 3 MP. Besides the runner's chart
+(wall seconds against peak memory) it draws ``scale_curves.png``: seconds and
+peak memory against the set's total megapixels, a line per photo size.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from ..atomic import atomic_path
+from ..errors import GaslightError
+from ..imageio import LDR_EXTENSIONS, list_images
+from ..locate import example_room
+
+NAME = "scale"
+DESCRIPTION = "whole chain on upscaled photos: seconds and peak memory vs photo count and size"
+X = ("seconds", "wall seconds (whole chain)")
+Y = ("peak_rss_gb", "peak memory (GB, largest resident set)")
+HIGHER_IS_BETTER = False
+TABLE = ("photos", "megapixels", "seconds", "peak_rss_gb", "uplift_s", "poses_s", "fit_s",
+         "export_s", "hdri_s", "splats")
+EXAMPLE = example_room()
+STAGES = ("uplift", "poses", "fit", "export", "hdri")
+DEFAULT_CASES = ((24, 0.2), (24, 3.0), (24, 12.0), (12, 12.0), (48, 12.0), (96, 12.0))
+QUICK_CASES = ((12, 0.2), (12, 3.0))
+NAMED_SIZES = {12.0: (4032, 3024), 3.0: (2016, 1512), 0.2: (480, 360)}
+"""Phone-like sizes (4:3); 0.2 MP is the example's own 480 x 360."""
+RUN_MAIN = "import sys; from gaslight_usd.cli.main import main; sys.exit(main())"
+
+
+def photo_size(megapixels: float, width: int = 480, height: int = 360) -> tuple[int, int]:
+    """The size of a ``width`` x ``height`` photo upscaled to about ``megapixels`` (never
+    below its own; 12 and 3 MP are the usual 4032 x 3024 and 2016 x 1512)."""
+    if megapixels in NAMED_SIZES and (width, height) == (480, 360):
+        return NAMED_SIZES[megapixels]
+    k = max(1.0, math.sqrt(megapixels * 1e6 / (width * height)))
+    return round(width * k), round(height * k)
+
+
+def upscale_photos(src: Path, dst: Path, width: int, height: int) -> list[Path]:
+    """Every photo of ``src`` enlarged to ``width`` x ``height`` into ``dst`` (JPEG, EXIF
+    and the other metadata kept); photos already there are reused.
+
+    Pixels are replicated (nearest), not interpolated: a real 12 MP photo is sharp,
+    and a smooth enlargement blurs a clipped lamp's edge into a near-white ring,
+    which the fast predictor reads as a white wall that only just clips (on the
+    example's view_00-07 shrunk back to 512 px, the uplift's brightest pixels were
+    93/60/76/31 from the 480 px photos, 69/17/4/52 from replicated pixels and
+    10/1/2/1 from a smooth enlargement).
+    """
+    import OpenImageIO as oiio
+
+    dst.mkdir(parents=True, exist_ok=True)
+    out = []
+    for path in list_images(src, LDR_EXTENSIONS):
+        target = dst / f"{path.stem}.jpg"
+        if not target.exists():
+            buf = oiio.ImageBuf(str(path))
+            big = oiio.ImageBufAlgo.resample(buf, interpolate=False,
+                                             roi=oiio.ROI(0, width, 0, height, 0, 1, 0, 3))
+            big.specmod().attribute("Compression", "jpeg:92")
+            with atomic_path(target) as tmp:
+                if not big.write(str(tmp), "uint8", "jpeg"):
+                    raise GaslightError(f"cannot write {target}: {big.geterror()}")
+        out.append(target)
+    return out
+
+
+def photo_set(photos: list[Path], folder: Path, count: int) -> Path:
+    """A folder of ``count`` photos: links to ``photos``, repeated under new names when
+    ``count`` exceeds them (``view_00_r1.jpg`` ...)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    for i in range(count):
+        src = photos[i % len(photos)]
+        rep = i // len(photos)
+        link = folder / (src.name if rep == 0 else f"{src.stem}_r{rep}{src.suffix}")
+        if not link.exists():
+            link.symlink_to(src.resolve())
+    return folder
+
+
+def run_measured(command: list[str], log: Path) -> tuple[int, float, float]:
+    """Run ``command``; (exit status, wall seconds, peak resident set in GB of it and its
+    waited-for children, from ``os.wait4``)."""
+    t0 = time.perf_counter()
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT)
+        _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return proc.returncode, time.perf_counter() - t0, usage.ru_maxrss / 1024 ** 2  # KiB -> GiB
+
+
+def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
+             ) -> dict[str, Any]:
+    """One whole-chain run of ``photos`` into ``out``: seconds per stage, peak memory."""
+    cmd = [sys.executable, "-c", RUN_MAIN, "run", str(photos), "-o", str(out), "--preset",
+           preset, "--fresh", "-q", *extra]
+    code, wall, peak = run_measured(cmd, out.with_suffix(".log"))
+    row: dict[str, Any] = {"seconds": round(wall, 2), "peak_rss_gb": round(peak, 3),
+                           "exit_code": code}
+    report = out / "report.json"
+    if report.exists():
+        stages = json.loads(report.read_text())["stages"]
+        for stage in stages:
+            row[f"{stage['name']}_s"] = stage["seconds"]
+            if stage["name"] == "fit":
+                row["splats"] = stage["counts"].get("splats")
+    if code != 0:
+        row["error"] = out.with_suffix(".log").read_text(errors="replace")[-400:]
+    return row
+
+
+def cases(options: dict[str, Any]) -> list[tuple[int, float]]:
+    counts, sizes = options.get("photos"), options.get("megapixels")
+    if counts or sizes:
+        return [(n, mp) for mp in (sizes or (12.0,)) for n in (counts or (24,))]
+    return list(QUICK_CASES if options.get("quick") else DEFAULT_CASES)
+
+
+def run(options: dict[str, Any]) -> list[dict[str, Any]]:
+    if not (EXAMPLE / "photos").is_dir():
+        raise GaslightError(f"the scale suite needs the bundled example's photos at {EXAMPLE}")
+    out = Path(options.get("out") or ".") / "scale-runs"
+    progress = options.get("progress")
+    rows = []
+    for preset in options.get("presets") or ("fast",):
+        for count, mp in cases(options):
+            w, h = photo_size(mp)
+            src = (EXAMPLE / "photos" if (w, h) == (480, 360) else
+                   out / "photos" / f"{w}x{h}")
+            photos = (list_images(src, LDR_EXTENSIONS) if src == EXAMPLE / "photos" else
+                      upscale_photos(EXAMPLE / "photos", src, w, h))
+            folder = photo_set(photos, out / "sets" / f"{count}x{w}x{h}", count)
+            if progress is not None:
+                progress.message(f"{preset}: {count} photos of {w}x{h}")
+            row = run_case(folder, out / f"{preset}-{count}x{w}x{h}", preset)
+            rows.append({"method": preset, "setting": f"{count} x {w * h / 1e6:.1f} MP",
+                         "photos": count, "megapixels": round(w * h / 1e6, 2),
+                         "width": w, "height": h, **row})
+    curves_chart(rows, Path(options.get("out") or ".") / "scale_curves.png")
+    return rows
+
+
+def notes(options: dict[str, Any]) -> list[str]:
+    return [f"cases (photos, MP): {cases(options)}; presets: "
+            f"{', '.join(options.get('presets') or ('fast',))}; {os.cpu_count()} cores",
+            "peak memory: ru_maxrss of the run (largest process, not a sum)"]
+
+
+def curves_chart(rows: list[dict[str, Any]], path: Path) -> Path:
+    """Seconds (per stage stacked as lines) and peak memory against the set's megapixels."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 4.5), dpi=110)
+    FigureCanvasAgg(fig)
+    left, right = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    groups: dict[tuple[str, float], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["method"], r["megapixels"]), []).append(r)
+    for (preset, mp), members in sorted(groups.items()):
+        members.sort(key=lambda r: r["photos"])
+        total = [r["photos"] * r["megapixels"] for r in members]
+        label = f"{preset}, {mp:g} MP photos"
+        left.plot(total, [r["seconds"] for r in members], "o-", label=label)
+        right.plot(total, [r["peak_rss_gb"] for r in members], "o-", label=label)
+        for r, x in zip(members, total, strict=True):
+            left.annotate(f"{r['photos']}", (x, r["seconds"]), fontsize=7,
+                          textcoords="offset points", xytext=(3, 3))
+    for ax, ylabel in ((left, "wall seconds (whole chain)"), (right, "peak memory (GB)")):
+        ax.set_xscale("symlog", linthresh=1.0)
+        ax.set_xlabel("photos x megapixels (the set's total MP)")
+        ax.set_ylabel(ylabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("gaslight2usd run: time and memory against the set's size")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    return path
