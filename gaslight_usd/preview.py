@@ -29,6 +29,7 @@ from . import colour
 from .atomic import atomic_path
 from .errors import GaslightError, InputError
 from .imageio import read_image
+from .resize import area_resize
 
 THUMB_HEIGHT = 120
 COLUMNS = 8
@@ -132,10 +133,20 @@ def contact_sheet(groups: Sequence[Sequence[np.ndarray]], thumb_height: int = TH
 def thumbnail(path: Path, config_uri: str, working_space: str, input_space: str,
               display_view: DisplayView, thumb_height: int, exposure_ev: float = 0.0
               ) -> np.ndarray:
-    """One file as a display-encoded thumbnail ``thumb_height`` high."""
+    """One file as a display-encoded thumbnail ``thumb_height`` high.
+
+    The pixels are first box-shrunk as stored to twice the thumbnail (a 12 MP photo
+    converted whole would hold several full-size float copies at once), then
+    linearised and shrunk the rest of the way.
+    """
     image = read_image(path, ldr_space=input_space, config_uri=config_uri)
-    linear = colour.convert(image.pixels, image.colour_space, working_space, config_uri)
-    small = resize_to_height(linear, min(thumb_height, image.height))
+    h, w = image.pixels.shape[:2]
+    scale = min(1.0, 2 * thumb_height / h)
+    stored = area_resize(image.pixels, max(1, round(w * scale)), max(1, round(h * scale)))
+    space = image.colour_space
+    del image  # the full-size pixels go before the conversion allocates
+    linear = colour.convert(stored, space, working_space, config_uri)
+    small = resize_to_height(linear, min(thumb_height, h))
     return to_display(small, working_space, config_uri, display_view, exposure_ev)
 
 

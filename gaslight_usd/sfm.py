@@ -67,9 +67,10 @@ class SfmOptions:
     """COLMAP threads. 1 keeps the result the same from run to run (threaded matching
     and mapping order their work by timing); -1 uses every core, faster on big sets."""
     extraction_threads: int = -1
-    """Threads of the feature extraction (-1: every core). Each photo's features are its
-    own, so threads change only the time, never the result; with 12 MP photos decoding
-    and SIFT are most of the SfM's time."""
+    """Threads of the feature extraction (-1: every core). With 12 MP photos decoding and
+    SIFT are most of the SfM's time. Threaded extraction writes the photos' features in
+    the order they finish, which can reorder the matching after it: set 1 (with
+    ``threads=1``) where the result must repeat exactly."""
     verbose: bool = False
 
 

@@ -48,6 +48,9 @@ QUICK_CASES = ((12, 0.2), (12, 3.0))
 NAMED_SIZES = {12.0: (4032, 3024), 3.0: (2016, 1512), 0.2: (480, 360)}
 """Phone-like sizes (4:3); 0.2 MP is the example's own 480 x 360."""
 RUN_MAIN = "import sys; from gaslight_usd.cli.main import main; sys.exit(main())"
+"""The CLI as ``python -P -c RUN_MAIN ...``: ``-P`` keeps the working directory off
+``sys.path``, so a source checkout's ``gaslight_usd`` folder (which lacks the
+converters that the installed package maps in) is never imported instead."""
 
 
 def photo_size(megapixels: float, width: int = 480, height: int = 360) -> tuple[int, int]:
@@ -101,21 +104,36 @@ def photo_set(photos: list[Path], folder: Path, count: int) -> Path:
     return folder
 
 
+# A small launcher between the caller and the measured command. Linux counts the
+# memory a process had before its exec in its peak (ru_maxrss), and a child forked
+# from a big process (a pytest run with torch loaded, 1.3 GB) starts out that big.
+# The launcher's own pre-exec peak stays with the launcher; the command it starts
+# is forked from a small interpreter, so its peak is its own.
+_LAUNCH = ("import os, subprocess, sys; p = subprocess.Popen(sys.argv[2:]); "
+           "_, status, usage = os.wait4(p.pid, 0); "
+           "open(sys.argv[1], 'w').write(str(usage.ru_maxrss)); "
+           "sys.exit(os.waitstatus_to_exitcode(status))")
+
+
 def run_measured(command: list[str], log: Path) -> tuple[int, float, float]:
     """Run ``command``; (exit status, wall seconds, peak resident set in GB of it and its
-    waited-for children, from ``os.wait4``)."""
+    waited-for children, from ``os.wait4`` in a small launcher process)."""
+    peak_file = log.with_name(log.name + ".peak")
+    peak_file.unlink(missing_ok=True)
     t0 = time.perf_counter()
     with open(log, "wb") as out:
-        proc = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT)
-        _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    return proc.returncode, time.perf_counter() - t0, usage.ru_maxrss / 1024 ** 2  # KiB -> GiB
+        code = subprocess.run([sys.executable, "-P", "-c", _LAUNCH, str(peak_file), *command],
+                              stdout=out, stderr=subprocess.STDOUT).returncode
+    seconds = time.perf_counter() - t0
+    peak_kib = float(peak_file.read_text()) if peak_file.is_file() else 0.0
+    peak_file.unlink(missing_ok=True)
+    return code, seconds, peak_kib / 1024 ** 2  # KiB -> GiB
 
 
 def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
              ) -> dict[str, Any]:
     """One whole-chain run of ``photos`` into ``out``: seconds per stage, peak memory."""
-    cmd = [sys.executable, "-c", RUN_MAIN, "run", str(photos), "-o", str(out), "--preset",
+    cmd = [sys.executable, "-P", "-c", RUN_MAIN, "run", str(photos), "-o", str(out), "--preset",
            preset, "--fresh", "-q", *extra]
     code, wall, peak = run_measured(cmd, out.with_suffix(".log"))
     row: dict[str, Any] = {"seconds": round(wall, 2), "peak_rss_gb": round(peak, 3),

@@ -84,10 +84,12 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
         progress.message(f"triangulating sparse points from {len(images)} HDR views "
                          "(poses fixed)")
         try:
-            # one thread: COLMAP's threaded matching and triangulation order their
-            # work by timing, so the points (and the fit after them) would change
-            # from run to run; the fit must be deterministic for a seed
-            filled = triangulate_known_poses(work, model, SfmOptions(threads=1),
+            # one thread throughout: COLMAP's threaded extraction, matching and
+            # triangulation order their work by timing, so the points (and the fit
+            # after them) would change from run to run; the fit must be deterministic
+            # for a seed. The views are at the working size, so one thread is cheap.
+            filled = triangulate_known_poses(work, model,
+                                             SfmOptions(threads=1, extraction_threads=1),
                                              progress=progress)
         except (GaslightError, RuntimeError, ValueError) as err:
             progress.message(f"triangulation failed ({err}); starting without points")

@@ -39,7 +39,7 @@ from .grouping import (  # noqa: F401 (re-exported: the bracket API in one place
     read_photo,
 )
 from .merge import merge_stack
-from .similarity import Thumbnail, similarity, thumbnail
+from .similarity import THUMB_SIDE, Thumbnail, similarity, thumbnail
 
 
 def photo_of_view(view: View) -> Photo:
@@ -101,10 +101,13 @@ def group_brackets(views: Sequence[View], group_file: Path | None = None) -> lis
 
 
 def find_brackets(paths: Sequence[Path], input_space: str, working_space: str,
-                  config_uri: str | None = None) -> list[Bracket]:
+                  config_uri: str | None = None, long_side: int = 8 * THUMB_SIDE
+                  ) -> list[Bracket]:
     """Brackets among photo files: EXIF candidates from headers, confirmed by pixels.
 
-    Only photos that could be in a bracket by EXIF are decoded.
+    Only photos that could be in a bracket by EXIF are decoded, each shrunk as read to
+    ``long_side`` (the similarity compares thumbnails of :data:`THUMB_SIDE` blocks, so
+    a 12 MP photo need not stay whole in memory: 8 of them are 1.1 GB as float32).
     """
     from ..views import load_views
 
@@ -113,7 +116,7 @@ def find_brackets(paths: Sequence[Path], input_space: str, working_space: str,
     if not wanted:
         return []
     loaded = load_views([photos[i].path for i in wanted], input_space, working_space,
-                        config_uri)
+                        config_uri, long_side)
     views: list[View | None] = [None] * len(photos)
     for i, v in zip(wanted, loaded, strict=True):
         views[i] = v
