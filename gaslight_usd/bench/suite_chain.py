@@ -11,7 +11,10 @@ true poses (so the uplift and the fit are measured, not SfM), once per method:
 * ``recursive`` -- GaSLight's recursive uplift (fast predictor), clipped pixels fitted
   as bounds (:func:`gaslight_usd.fit.losses.bounded_l1`);
 * ``recursive, fills as targets`` -- the same uplift, its fills fitted like measurements
-  (the behaviour before bounds), to show what the bound-aware loss buys.
+  (the behaviour before bounds), to show what the bound-aware loss buys;
+* ``recursive + dark frames`` -- the capture the README advises: one photo per light
+  re-exposed for that light (:mod:`.dark_frames`), the rest as shot; its unclipped
+  light pixels are measurements, the other photos' clipped ones bounds.
 
 Then lat-long panoramas are drawn at the scene's probes (the room's middle and
 0.5 m from its lights) and scored against the path-traced probes, in absolute
@@ -22,7 +25,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``relight_psnr`` -- the GaSLight relight protocol (Mitsuba sphere + plane);
 * ``pu21_psnr_peak`` -- PU21-PSNR with the truth's peak at 1000 cd/m^2;
 * ``power_err_<light>`` -- log2(found / true) of the light arriving at the probe from
-  each true light's direction (a cone 5 degrees wider than the light), in stops.
+  each true light's direction (a cone 5 degrees wider than the light), in stops;
+* ``light_dist_<light>``, ``lights_found``, ``stray_light_share`` -- where the lights
+  the export would write are (:func:`light_placement`), the same on each probe's row.
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -42,6 +47,7 @@ import numpy as np
 
 from ..cameras import latlong_directions, latlong_solid_angles
 from ..colour import convert
+from ..errors import GaslightError
 from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
 from ..fit import fit_splats, load_fit_data, preset
 from ..imageio import read_image
@@ -58,7 +64,8 @@ TABLE = ("scene", "probe", "seconds", "irradiance_psnr", "relight_psnr", "pu21_p
          "power_err_stops_max")
 REFERENCES = ("truth HDR", "clipped photos")
 SCENES = ("room", "bulb", "panels", "shade")
-METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets")
+METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets",
+           "recursive + dark frames")
 TRUTH_SPACE = "lin_rec709_scene"
 CONE_MARGIN_DEG = 5.0
 MIN_CONE_DEG = 6.0
@@ -165,6 +172,49 @@ def power_errors(pano: np.ndarray, truth: np.ndarray, lights: list[dict[str, Any
 
 # -- the chain ------------------------------------------------------------------------------
 
+def emitter_distance(light: dict[str, Any], points: np.ndarray) -> np.ndarray:
+    """Distances (m) from ``points`` (N, 3) to a true emitter's surface: a sphere's, or a
+    rectangle's (the nearest point of the rectangle, edges included)."""
+    centre = np.asarray(light["center"], np.float64)
+    if light["kind"] == "sphere":
+        return np.abs(np.linalg.norm(points - centre, axis=1) - float(light["radius"]))
+    corners = np.asarray(light["corners"], np.float64)
+    u, v = corners[1] - corners[0], corners[3] - corners[0]
+    rel = points - corners[0]
+    a = np.clip(rel @ u / (u @ u), 0.0, 1.0)
+    b = np.clip(rel @ v / (v @ v), 0.0, 1.0)
+    nearest = corners[0] + a[:, None] * u + b[:, None] * v
+    return np.linalg.norm(points - nearest, axis=1)
+
+
+def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str, Any]:
+    """Where the output's lights are (:func:`gaslight_usd.lights.find_lights`, the rig
+    the USD export writes) against the true emitters:
+
+    * ``lights_found`` -- how many lights the export would write;
+    * ``light_dist_<name>`` -- metres from each true emitter to the nearest found light
+      (its power-weighted centre), minus that light's radius (0 when it covers it);
+    * ``stray_light_share`` -- the share of the found lights' power more than 0.3 m from
+      every true emitter (floating or smeared bright splats).
+    """
+    from ..lights import find_lights
+
+    found = find_lights(scene)
+    row: dict[str, Any] = {"lights_found": len(found)}
+    if not found:
+        return row | {f"light_dist_{li['name']}": float("nan") for li in lights} | {
+            "stray_light_share": float("nan")}
+    pos = np.stack([f.position for f in found]).astype(np.float64)
+    radius = np.array([f.radius for f in found])
+    dists = np.stack([emitter_distance(li, pos) for li in lights])  # (lights, found)
+    for li, d in zip(lights, dists, strict=True):
+        row[f"light_dist_{li['name']}"] = round(float(np.maximum(d - radius, 0.0).min()), 3)
+    power = np.array([float(f.power.sum()) for f in found])
+    stray = np.maximum(dists.min(axis=0) - radius, 0.0) > 0.3
+    row["stray_light_share"] = round(float(power[stray].sum() / max(power.sum(), 1e-30)), 3)
+    return row
+
+
 def absolute_scale(hdr_attrs: dict[str, Any], exposure: dict[str, Any]) -> float:
     """Radiance per unit of relative radiance: the reference exposure's t x K.
 
@@ -196,6 +246,12 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     info = json.loads((folder / "scene.json").read_text())
     if method == "truth HDR":
         hdr, scale = folder / "truth", 1.0
+    elif method == "recursive + dark frames":
+        from .dark_frames import dark_frame_photos
+
+        photos = work / "photos"
+        dark_frame_photos(folder, photos, scene_lights(info))
+        hdr = uplift(photos, work / "run", method)
     else:
         hdr = uplift(folder / "photos", work, method)
     cfg = preset(preset_name)
@@ -242,7 +298,12 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     progress = options.get("progress")
     presets = options.get("presets") or ("fast",)
     scenes = options.get("scenes") or (("room",) if quick else SCENES)
-    methods = ("clipped photos", "recursive") if quick else METHODS
+    methods = options.get("methods") or (("clipped photos", "recursive") if quick
+                                         else METHODS)
+    unknown = [n for n in (*methods, *scenes) if n not in (*METHODS, *SCENES)]
+    if unknown:
+        raise GaslightError(f"chain suite: unknown method or scene {', '.join(unknown)} "
+                            f"(methods: {', '.join(METHODS)}; scenes: {', '.join(SCENES)})")
     renderer = None
     if not quick:
         from ..evaluation.relight import RelightRenderer
@@ -257,9 +318,11 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                 work = out / "work" / scene_name / method.replace(" ", "_").replace(",", "")
                 scene, seconds, scale, metrics = fitted_scene(folder, method, work,
                                                               preset_name, seed)
+                info = json.loads((folder / "scene.json").read_text())
+                placement = light_placement(scene, scene_lights(info))
                 for row in probe_rows(scene, folder, scale, relight=not quick,
                                       renderer=renderer):
                     rows.append({"method": method, "setting": preset_name,
                                  "scene": scene_name, "seconds": round(seconds, 2),
-                                 "splats": metrics["splats"], **row})
+                                 "splats": metrics["splats"], **row, **placement})
     return rows

@@ -52,7 +52,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="fit suite: fit presets to measure (repeatable; default fast and "
                         "balanced; balanced takes about 50 min on 2 cores)")
     p.add_argument("--method", action="append", default=[], metavar="NAME",
-                   help="uplift suite: only these methods (repeatable; default: all)")
+                   help="uplift and chain suites: only these methods (repeatable; "
+                        "default: all)")
+    p.add_argument("--scene", action="append", default=[], metavar="NAME",
+                   help="chain suite: only these scenes (repeatable; room, bulb, panels, "
+                        "shade; default: all)")
     p.add_argument("--photos", type=_numbers(int), metavar="N[,N...]",
                    help="scale suite: photo counts (e.g. 12,24,48,96)")
     p.add_argument("--megapixels", type=_numbers(float), metavar="MP[,MP...]",
@@ -124,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
     names = args.suite or list(discovery.suites)
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
                "verbose": args.verbose, "presets": tuple(args.preset) or None,
-               "methods": list(args.method) or None,
+               "methods": list(args.method) or None, "scenes": tuple(args.scene) or None,
                "photos": args.photos, "megapixels": args.megapixels}
     results = []
     for name in names:

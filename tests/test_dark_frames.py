@@ -1,0 +1,58 @@
+"""The chain bench's capture with one darker frame per light (bench/dark_frames.py):
+the frame is aimed at its light, the light no longer clips, and the photo reads back
+with the exposure it was given."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from gaslight_usd.bench.dark_frames import HEADROOM, dark_exposure, dark_frame_photos
+from gaslight_usd.bench.suite_chain import scene_lights
+from gaslight_usd.colour import convert
+from gaslight_usd.imageio import read_image
+from gaslight_usd.locate import example_room
+from gaslight_usd.poses import read_poses
+
+EXAMPLE = example_room()
+
+
+def test_dark_exposure_puts_the_peak_below_white_in_third_stops():
+    radiance = np.full((40, 40, 3), 0.5, np.float32)
+    radiance[20, 21] = [3000.0, 2000.0, 1000.0]
+    t = dark_exposure(radiance, np.array([20.5, 19.5]), 10.0)
+    assert 3000.0 * t * 10.0 <= HEADROOM
+    assert 3000.0 * t * 10.0 > HEADROOM * 2 ** (-1 / 3)  # no darker than it must be
+    assert 3 * math.log2(t) == pytest.approx(round(3 * math.log2(t)))
+
+
+def test_each_light_gets_a_frame_that_sees_it_unclipped(tmp_path):
+    info = json.loads((EXAMPLE / "scene.json").read_text())
+    lights = scene_lights(info)
+    chosen = dark_frame_photos(EXAMPLE, tmp_path / "photos", lights)
+    assert sorted(c["light"] for c in chosen.values()) == ["lamp", "window"]
+    cams = {c.name: c for c in read_poses(EXAMPLE / "sparse" / "0").cameras}
+    k_camera = info["exposure"]["K"]
+    for name, what in chosen.items():
+        photo = read_image(tmp_path / "photos" / name)
+        truth = read_image(EXAMPLE / "truth" / name.replace(".jpg", ".exr")).pixels
+        was = read_image(EXAMPLE / "photos" / name).exposure.exposure_time
+        t = photo.exposure.exposure_time
+        assert math.log2(t / was) == pytest.approx(what["stops"], abs=0.01)
+        assert what["stops"] < 0
+        light = next(li for li in lights if li["name"] == what["light"])
+        ((u, v),), _ = cams[name].project(np.array([light["center"]]))
+        v0, u0 = int(v), int(u)
+        patch = photo.pixels[v0 - 3:v0 + 4, u0 - 3:u0 + 4]
+        assert patch.max() < 0.99  # the light is measured, not clipped
+        # the recorded value is the camera model's: sRGB(truth x t x K) (JPEG aside)
+        linear = np.clip(truth[v0 - 3:v0 + 4, u0 - 3:u0 + 4] * t * k_camera, 0, 1)
+        expect = convert(linear.astype(np.float32), "lin_rec709_scene", "srgb_rec709_scene")
+        assert np.abs(patch - expect).max() < 0.05
+    unchanged = sorted(set(cams) - set(chosen))
+    assert (tmp_path / "photos" / unchanged[0]).resolve() == \
+        (EXAMPLE / "photos" / unchanged[0]).resolve()
+    assert json.loads((tmp_path / "dark_frames.json").read_text()) == chosen
