@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import torch
 from conftest import write_jpeg
 
+from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.cli.main import main
+from gaslight_usd.colmap import ColmapModel
 from gaslight_usd.colour import luminance_weights
-from gaslight_usd.fit.data import fit_floor
+from gaslight_usd.fit.data import FitData, fit_floor
 from gaslight_usd.fit.losses import bounded_l1
 from gaslight_usd.imageio import read_channel, read_image
 from gaslight_usd.views import CLIP_FLOOR_CHANNEL
@@ -21,10 +25,11 @@ def test_bounded_l1_penalises_only_radiance_below_the_floor_in_clipped_pixels():
     floor = torch.tensor([[1.0, 0.0]])  # pixel 0 clipped at 1, pixel 1 measured
     above = torch.full((1, 2, 3), 8.0)
     above[0, 0] = 20.0  # far above the fill, but above the floor: only the weak pull
-    assert abs(float(bounded_l1(above, target, floor, Y, 0.1)) - 0.1 * 12.0 / 2) < 1e-5
+    pull = math.log(21.0 / 9.0)  # |log(1 + x) - log(1 + fill)|: in stops, not radiance
+    assert abs(float(bounded_l1(above, target, floor, Y, 0.1)) - 0.1 * pull / 2) < 1e-5
     below = torch.full((1, 2, 3), 8.0)
     below[0, 0] = 0.5  # under what the photo recorded: the bound bites
-    expected = (0.1 * 7.5 + 0.5) / 2
+    expected = (0.1 * math.log(9.0 / 1.5) + 0.5) / 2
     assert abs(float(bounded_l1(below, target, floor, Y, 0.1)) - expected) < 1e-5
     # no floor: plain L1
     assert abs(float(bounded_l1(above, target, None)) - 12.0 / 2) < 1e-5
@@ -48,6 +53,24 @@ def test_a_view_that_measured_the_light_pins_it_against_another_views_fill():
 
     assert abs(fit(True) - 3.0) < 0.1
     assert fit(False) > 3.5
+
+
+def test_one_measured_frame_outweighs_many_clipped_guesses():
+    """15 views clipped a lamp at 1 and the uplift guessed 3; one dark frame measured
+    400. The fit must take the measurement (a linear pull from each guess, 15 x 0.1,
+    outweighed it, and the lamp stayed at the guess)."""
+    x = torch.tensor(1.0, requires_grad=True)  # log radiance, as the splats' colours
+    opt = torch.optim.Adam([x], lr=0.05)
+    floor = torch.tensor([[1.0]])
+    for _ in range(800):
+        opt.zero_grad()
+        pred = x.exp().expand(1, 1, 3)
+        guesses = sum(bounded_l1(pred, torch.full((1, 1, 3), 3.0), floor, Y, 0.1)
+                      for _ in range(15))
+        loss = guesses + bounded_l1(pred, torch.full((1, 1, 3), 400.0), None)
+        loss.backward()
+        opt.step()
+    assert abs(math.log2(float(x.detach().exp()) / 400.0)) < 0.1
 
 
 def test_fit_floor_bounds_the_mean_of_a_downscaled_pixel():
@@ -80,3 +103,34 @@ def test_hdr_views_carry_the_recorded_luminance_where_the_photo_clipped(tmp_path
     # the floor is what the photo recorded there: the linearised clipped pixel
     np.testing.assert_allclose(floor[clipped], y[clipped], rtol=2e-3)
     assert read_image(view).pixels.shape == (48, 64, 3)  # RGB readers see RGB only
+
+
+def _views_with_a_dark_frame(dark: int, n: int = 16) -> FitData:
+    """``n`` views that clip a light at white 1 (floor 1 on 4 pixels), and one, ``dark``,
+    that measured it unclipped at 400."""
+    images, floors = [], []
+    for i in range(n):
+        img = np.full((6, 8, 3), 0.3, np.float32)
+        floor = np.zeros((6, 8), np.float32)
+        if i == dark:
+            img[2:4, 3:5] = 400.0
+        else:
+            img[2:4, 3:5] = 6.0  # the uplift's fill
+            floor[2:4, 3:5] = 1.0
+        images.append(img)
+        floors.append(floor)
+    cams = [PinholeCamera(8, 6, 8.0, 8.0, 4.0, 3.0, np.eye(3), np.zeros(3))] * n
+    return FitData(names=[f"v{i}" for i in range(n)], cameras=cams, images=images,
+                   model=ColmapModel(cameras=[]), colour_space="lin_rec709_scene",
+                   floors=floors)
+
+
+def test_the_view_that_measured_a_clipped_light_is_never_held_out():
+    plain = _views_with_a_dark_frame(dark=-1)
+    assert plain.measures_highlights() == [] and plain.split(8)[1] == [4, 12]
+    data = _views_with_a_dark_frame(dark=12)
+    assert data.measures_highlights() == [12]
+    train, held = data.split(8)
+    assert 12 in train and held == [4, 13] and len(train) == 14
+    # a fill above white is not a measurement: only the unclipped 400 counts
+    assert _views_with_a_dark_frame(dark=4).split(8)[1] == [5, 12]

@@ -57,12 +57,47 @@ class FitData:
     left_out: list[str] = field(default_factory=list)
     """HDR views (stems) with no pose, left out of the fit (e.g. SfM did not register them)."""
 
+    def measures_highlights(self, factor: float = 2.0) -> list[int]:
+        """Views that measured, unclipped, light brighter than ``factor`` x the set's
+        white (the median over clipped views of their brightest clip floor).
+
+        Such a view (a darker frame shot for the lights, or an auto-exposure that
+        dropped) is the only measurement of a light every other photo clipped, so the
+        fit must train on it: held out, it would leave that light to the bounds and
+        the uplift's guess. Empty when no view clipped (the white is unknown).
+        """
+        whites = [float(f.max()) for f in (self.floor(i) for i in range(len(self.images)))
+                  if f is not None]
+        if not whites:
+            return []
+        white = float(np.median(whites))
+        weights = luminance_weights(self.colour_space)
+        keep = []
+        for i, image in enumerate(self.images):
+            lum = image @ weights.astype(np.float32)
+            floor = self.floor(i)
+            measured = lum if floor is None else lum[floor <= 0]
+            if measured.size and float(measured.max()) > factor * white:
+                keep.append(i)
+        return keep
+
     def split(self, holdout_every: int) -> tuple[list[int], list[int]]:
-        """Training and held-out view indices (every ``holdout_every``-th held out)."""
+        """Training and held-out view indices (every ``holdout_every``-th held out).
+
+        A view that :meth:`measures_highlights` is never held out: the nearest other
+        view (the next one, then the one before) is held out in its place.
+        """
         n = len(self.cameras)
         if holdout_every <= 1 or n < 3:
             return list(range(n)), []
-        held = [i for i in range(n) if i % holdout_every == holdout_every // 2]
+        keep = set(self.measures_highlights())
+        held: list[int] = []
+        for slot in range(holdout_every // 2, n, holdout_every):
+            for i in sorted(range(n), key=lambda j: (abs(j - slot), j < slot)):
+                if i not in keep and i not in held:
+                    held.append(i)
+                    break
+        held = sorted(held)
         return [i for i in range(n) if i not in held], held
 
 
