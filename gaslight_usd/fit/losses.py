@@ -9,7 +9,7 @@ Clipped pixels are bounds, not targets: where the photo clipped (a view's clip
 floor, :data:`gaslight_usd.views.CLIP_FLOOR_CHANNEL`, is > 0) the photo only says
 the luminance is at least the floor; the uplift's fill there is a guess. So in
 those pixels the loss is ``relu(floor - Y(pred))`` (any radiance above what the
-photo recorded is free) plus ``fill_weight`` x a pull in stops towards the
+photo recorded is free) plus ``fill_weight`` x a pull in log radiance towards the
 predictor's fill (:func:`fill_pull`). A view whose exposure saw the light
 unclipped then pins its power, however many other views' fills guessed it lower:
 a linear L1 pull from each of 15 clipped views (15 x 0.1) outweighed the one
@@ -78,7 +78,7 @@ def bounded_l1(pred: torch.Tensor, target: torch.Tensor, floor: torch.Tensor | N
 
 
 def fill_pull(pred: torch.Tensor, fill: torch.Tensor) -> torch.Tensor:
-    """``|log(1 + pred) - log(1 + fill)|``: a pull towards the fill in (natural) stops.
+    """``|log(1 + pred) - log(1 + fill)|``: a pull towards the fill in log radiance.
 
     Its slope, ``1 / (1 + pred)``, is below a measurement's (1) wherever the light is
     brighter than white, so however many clipped views guessed low, one view that
