@@ -249,8 +249,3 @@ def latlong_to_cube(image: np.ndarray, size: int) -> np.ndarray:
         xy = direction_to_latlong(cam.ray_directions(), w, h)
         out.append(_bilinear(image, xy[..., 0], xy[..., 1], wrap_x=True))
     return np.stack(out)
-
-
-def stack_cube(faces: np.ndarray) -> np.ndarray:
-    """(6, S, S, C) -> (6 S, S, C): the OpenEXR envmap=cube image layout."""
-    return np.asarray(faces).reshape(-1, *faces.shape[2:])

@@ -272,10 +272,3 @@ def open_variant(root: str | Path, variant: str) -> Usd.Stage:
     stage = Usd.Stage.Open(str(root))
     stage.GetDefaultPrim().GetVariantSet(VARIANT_SET).SetVariantSelection(variant)
     return stage
-
-
-def probe_default(scene: SplatScene) -> np.ndarray:
-    """The default probe point (:func:`gaslight_usd.probe.default_probe`)."""
-    from ..probe import default_probe
-
-    return default_probe(scene).position

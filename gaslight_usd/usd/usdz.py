@@ -16,7 +16,6 @@ from ..atomic import atomic_path
 from ..errors import GaslightError
 from .validate import Finding, validate
 
-USDZ_KEYWORDS = ["UsdzValidators"]
 ZIP_LIMIT = 2**32 - 1
 
 
