@@ -134,3 +134,42 @@ def test_the_view_that_measured_a_clipped_light_is_never_held_out():
     assert 12 in train and held == [4, 13] and len(train) == 14
     # a fill above white is not a measurement: only the unclipped 400 counts
     assert _views_with_a_dark_frame(dark=4).split(8)[1] == [5, 12]
+
+
+def _lamp_views(lamp_values: list[float], clipped: list[bool]):
+    """Views from cameras in a row looking down +z at a 3x3-pixel lamp 3 m away on grey;
+    each view's lamp pixels hold ``lamp_values[i]``, clipped or not."""
+    lamp = np.array([0.0, 0.0, 3.0])
+    cams, images, floors = [], [], []
+    for i, (value, clip) in enumerate(zip(lamp_values, clipped, strict=True)):
+        centre = np.array([0.3 * i - 0.3, 0.0, 0.0])
+        cam = PinholeCamera(32, 24, 30.0, 30.0, 16.0, 12.0, np.eye(3), -centre)
+        img = np.full((24, 32, 3), 0.5, np.float32)
+        floor = np.zeros((24, 32), np.float32)
+        u, v = cam.project(lamp[None])[0][0].astype(int)
+        img[v - 1:v + 2, u - 1:u + 2] = value
+        floor[v - 1:v + 2, u - 1:u + 2] = 1.0 if clip else 0.0
+        cams.append(cam)
+        images.append(img)
+        floors.append(floor)
+    return lamp, cams, images, floors
+
+
+def test_light_seeds_take_the_colour_a_view_measured_not_the_clipped_guesses():
+    from gaslight_usd.fit.init import bright_points, measured_colours
+
+    # two photos clipped the lamp (the uplift guessed 40), a dark frame measured 500
+    lamp, cams, images, floors = _lamp_views([40.0, 40.0, 500.0], [True, True, False])
+    points = np.array([lamp, [0.05, 0.0, 3.0], [0.6, 0.4, 4.0]])  # lamp, lamp, wall
+    guess = np.array([[40.0] * 3, [40.0] * 3, [0.5] * 3], np.float32)
+    np.testing.assert_allclose(measured_colours(points, guess, cams, images, floors),
+                               [[500.0] * 3, [500.0] * 3, [0.5] * 3])
+    # a clipped view's guess is never taken as a measurement, however high it is
+    _, cams, images, floors = _lamp_views([40.0, 2000.0, 500.0], [True, True, False])
+    np.testing.assert_allclose(measured_colours(points, guess, cams, images, floors)[:, 0],
+                               [500.0, 500.0, 0.5])
+    # the seeds bright_points makes from the clipped photos get the measured colour
+    _, cams, images, floors = _lamp_views([40.0, 40.0, 500.0], [True, True, False])
+    _, own = bright_points(cams, images, 27, np.random.default_rng(0))
+    _, cols = bright_points(cams, images, 27, np.random.default_rng(0), floors=floors)
+    assert (own[:, 0] == 40.0).sum() == 18 and (cols[:, 0] == 500.0).sum() > 9

@@ -105,14 +105,44 @@ def plane_sweep_points(cameras: list[PinholeCamera], images: list[np.ndarray], c
     return pts, cols
 
 
+def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[PinholeCamera],
+                     images: list[np.ndarray], floors: list[np.ndarray | None]) -> np.ndarray:
+    """``colours``, raised to the brightest *measured* sample of each point in any view.
+
+    A light's seed takes the colour of the pixel it was swept from, and most of its
+    pixels come from photos where it clipped: the uplift's fill there is a guess,
+    often stops low. A view whose photo measured the light unclipped (a dark frame,
+    a lower auto-exposure; its clip floor is 0 there) knows better, and a short fit
+    (``fast``: a few dozen steps on that one view) cannot climb the stops from the
+    guess. The brightest such sample wins (occluders only make samples darker);
+    a point no view measured keeps its colour.
+    """
+    best = np.asarray(colours, np.float32).copy()
+    best_y = best @ LUMA
+    for cam, image, floor in zip(cameras, images, floors, strict=True):
+        uv, z = cam.project(points)
+        inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & \
+                 (uv[:, 1] >= 0) & (uv[:, 1] < cam.height)
+        sample = _sample(image, uv)
+        if floor is not None:
+            inside &= _sample(floor[..., None], uv)[:, 0] <= 0
+        y = sample @ LUMA
+        take = inside & (y > best_y)
+        best[take], best_y[take] = sample[take], y[take]
+    return best
+
+
 def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
                   rng: np.random.Generator, ratio: float = BRIGHT_RATIO,
-                  depth_steps: int = 48) -> tuple[np.ndarray, np.ndarray]:
+                  depth_steps: int = 48, floors: list[np.ndarray | None] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Points on light sources: pixels over ``ratio`` x the median of all views, plane-swept.
 
     Lamps and windows have no features to triangulate and sit off the
     surfaces the sparse points describe, yet they light the scene; their own
-    brightness makes their depth easy to find by photo-consistency.
+    brightness makes their depth easy to find by photo-consistency. With the
+    views' clip ``floors``, each point's colour is its brightest measured sample
+    (:func:`measured_colours`); without them every pixel counts as measured.
     """
     lum = [im @ LUMA for im in images]
     level = ratio * float(np.median(np.concatenate([y[::4, ::4].ravel() for y in lum])))
@@ -132,7 +162,10 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
         cols.append(_sample(images[v], px))
     if not pts:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
-    return np.concatenate(pts), np.concatenate(cols).astype(np.float32)
+    pts, cols = np.concatenate(pts), np.concatenate(cols).astype(np.float32)
+    if floors is not None:
+        cols = measured_colours(pts, cols, cameras, images, floors)
+    return pts, cols
 
 
 def _seen_by(model: ColmapModel, names: list[str]) -> np.ndarray | None:
@@ -186,11 +219,14 @@ def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
 
 
 def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: list[np.ndarray],
-                   names: list[str], count: int, rng: np.random.Generator
+                   names: list[str], count: int, rng: np.random.Generator,
+                   floors: list[np.ndarray | None] | None = None
                    ) -> tuple[np.ndarray, np.ndarray, str]:
     """Points, HDR colours and how they were made.
 
     "sparse points + surface fill" when the model has points, else "plane sweep".
+    ``floors``: the views' clip floors (None: every pixel measured), for the lights'
+    colours (:func:`bright_points`).
     """
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
@@ -198,7 +234,8 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
         if len(pts) > count // 2:
             pick = np.sort(rng.choice(len(pts), count // 2, replace=False))
             pts, colours = pts[pick], colours[pick]
-        lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng)
+        lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng,
+                                              floors=floors)
         seen = _seen_by(model, names)
         fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
                                                  cameras, images,

@@ -117,8 +117,9 @@ class Trainer:
         cams = [self.data.cameras[i] for i in self.train]
         imgs = [self.data.images[i] for i in self.train]
         names = [self.data.names[i] for i in self.train]
+        floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
-                                        min(cfg.init_points, cfg.budget), rng)
+                                        min(cfg.init_points, cfg.budget), rng, floors)
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
