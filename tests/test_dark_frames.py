@@ -10,7 +10,14 @@ import math
 import numpy as np
 import pytest
 
-from gaslight_usd.bench.dark_frames import HEADROOM, dark_exposure, dark_frame_photos
+from gaslight_usd.bench.dark_frames import (
+    HEADROOM,
+    SHORTEST_EXPOSURE,
+    SMALLEST_APERTURE,
+    camera_settings,
+    dark_exposure,
+    dark_frame_photos,
+)
 from gaslight_usd.bench.suite_chain import scene_lights
 from gaslight_usd.colour import convert
 from gaslight_usd.imageio import read_image
@@ -29,6 +36,16 @@ def test_dark_exposure_puts_the_peak_below_white_in_third_stops():
     assert 3 * math.log2(t) == pytest.approx(round(3 * math.log2(t)))
 
 
+def test_a_dark_frame_is_what_a_camera_can_shoot():
+    assert camera_settings(1 / 500, 4.0) == (1 / 500, 4.0)
+    # 2 stops past the fastest shutter: the aperture closes 2 stops (f/4 -> f/8)
+    shutter, aperture = camera_settings(SHORTEST_EXPOSURE / 4, 4.0)
+    assert shutter == SHORTEST_EXPOSURE and aperture == pytest.approx(8.0)
+    # past f/22 too: as dark as the camera goes
+    assert camera_settings(SHORTEST_EXPOSURE / 1000, 4.0) == (SHORTEST_EXPOSURE,
+                                                               SMALLEST_APERTURE)
+
+
 def test_each_light_gets_a_frame_that_sees_it_unclipped(tmp_path):
     info = json.loads((EXAMPLE / "scene.json").read_text())
     lights = scene_lights(info)
@@ -40,7 +57,7 @@ def test_each_light_gets_a_frame_that_sees_it_unclipped(tmp_path):
         photo = read_image(tmp_path / "photos" / name)
         truth = read_image(EXAMPLE / "truth" / name.replace(".jpg", ".exr")).pixels
         was = read_image(EXAMPLE / "photos" / name).exposure.exposure_time
-        t = photo.exposure.exposure_time
+        t = photo.exposure.exposure_time * (4.0 / photo.exposure.f_number) ** 2
         assert math.log2(t / was) == pytest.approx(what["stops"], abs=0.01)
         assert what["stops"] < 0
         light = next(li for li in lights if li["name"] == what["light"])

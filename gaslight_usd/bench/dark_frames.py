@@ -5,7 +5,9 @@ bright light, exposed for the light so it does not clip. A generated scene has t
 radiance of every view, so the bench can make that capture without rendering again:
 for each light, the view that sees the light's centre nearest its image centre is
 re-exposed so that the brightest pixel within the light's disc (a few pixels around
-its projection) sits below white, rounded down to 1/3 stop as a camera would, and
+its projection) sits below white, rounded down to 1/3 stop as a camera would (the
+shutter no shorter than 1/8000 s, then the aperture closed down to f/22; a light
+brighter than that still clips and ``dark_frames.json`` says so), and
 written as the camera model of ``examples/make_room.py`` writes a photo
 (``clip(radiance * t * K)``, sRGB OETF, 8-bit JPEG, EXIF ExposureTime / FNumber /
 ISO). The other photos are linked unchanged. Used by ``bench --suite chain``'s
@@ -55,8 +57,16 @@ def light_view(cameras: list, center: np.ndarray, taken: set[str]) -> Any | None
     return best
 
 
+SHORTEST_EXPOSURE = 1.0 / 8000.0
+"""A camera's fastest shutter (s); EXIF's rationals also lose much shorter times (OpenImageIO
+wrote 4.6e-6 s as 0)."""
+SMALLEST_APERTURE = 22.0
+"""The f-number a lens closes down to."""
+
+
 def dark_exposure(radiance: np.ndarray, uv: np.ndarray, k_camera: float) -> float:
-    """Exposure time (s) putting the peak near ``uv`` at HEADROOM x white, 1/3-stop steps."""
+    """Exposure (s at the scene's f-number) putting the peak near ``uv`` at HEADROOM x
+    white, in 1/3-stop steps."""
     u, v = int(uv[0]), int(uv[1])
     patch = radiance[max(0, v - SEARCH_PX):v + SEARCH_PX + 1,
                      max(0, u - SEARCH_PX):u + SEARCH_PX + 1]
@@ -66,16 +76,29 @@ def dark_exposure(radiance: np.ndarray, uv: np.ndarray, k_camera: float) -> floa
     return 2.0 ** (math.floor(3 * math.log2(HEADROOM / (peak * k_camera))) / 3)
 
 
-def write_photo(path: Path, radiance: np.ndarray, exposure_time: float, k_camera: float,
-                like: Path) -> None:
-    """``radiance`` as the scene's camera records it at ``exposure_time``, with the EXIF
-    of ``like`` (its ExposureTime replaced)."""
-    linear = np.clip(radiance * np.float32(exposure_time * k_camera), 0.0, 1.0)
+def camera_settings(exposure: float, f_number: float) -> tuple[float, float]:
+    """(shutter s, f-number) giving ``exposure`` (s at ``f_number``) as a camera can: the
+    shutter down to :data:`SHORTEST_EXPOSURE`, then the aperture down to
+    :data:`SMALLEST_APERTURE`; beyond both, as dark as the camera goes."""
+    shutter = max(exposure, SHORTEST_EXPOSURE)
+    aperture = min(f_number * math.sqrt(shutter / exposure), SMALLEST_APERTURE)
+    return shutter, max(aperture, f_number)
+
+
+def write_photo(path: Path, radiance: np.ndarray, settings: tuple[float, float],
+                k_camera: float, f_number: float, like: Path) -> None:
+    """``radiance`` as the scene's camera records it at ``settings`` (shutter s,
+    f-number; ``k_camera`` holds at ``f_number``), with the EXIF of ``like`` (its
+    ExposureTime and FNumber replaced)."""
+    shutter, aperture = settings
+    gain = shutter * k_camera * (f_number / aperture) ** 2
+    linear = np.clip(radiance * np.float32(gain), 0.0, 1.0)
     encoded = convert(linear.astype(np.float32), TRUTH_SPACE, PHOTO_SPACE)
     pixels = np.round(np.clip(encoded, 0.0, 1.0) * 255).astype(np.uint8)
     spec = oiio.ImageSpec(read_header(like))
     spec.set_format(oiio.UINT8)
-    spec.attribute("ExposureTime", float(exposure_time))
+    spec.attribute("ExposureTime", float(shutter))
+    spec.attribute("FNumber", float(aperture))
     spec.attribute("Compression", "jpeg:93")
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
@@ -88,11 +111,13 @@ def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]]
                       ) -> dict[str, dict[str, Any]]:
     """``dst``: the scene's photos, one per light re-exposed for that light.
 
-    Returns, per re-exposed photo, the light it was aimed at and the exposure change
-    in stops (also written beside ``dst`` as ``dark_frames.json``).
+    Returns, per re-exposed photo, the light it was aimed at, the exposure change in
+    stops, its shutter and f-number, and whether the light still clips (also written
+    beside ``dst`` as ``dark_frames.json``).
     """
     info = json.loads((folder / "scene.json").read_text())
     k_camera = float(info["exposure"]["K"])
+    f_number = float(info["exposure"]["FNumber"])
     cameras = read_poses(folder / "sparse" / "0").cameras
     dst.mkdir(parents=True, exist_ok=True)
     chosen: dict[str, dict[str, Any]] = {}
@@ -104,11 +129,15 @@ def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]]
         photo = folder / "photos" / cam.name
         truth = read_image(folder / "truth" / (Path(cam.name).stem + ".exr")).pixels
         uv, _ = cam.project(center[None])
-        t_dark = dark_exposure(truth, uv[0], k_camera)
+        wanted = dark_exposure(truth, uv[0], k_camera)
+        shutter, aperture = camera_settings(wanted, f_number)
         t_was = float(read_header(photo).getattribute("ExposureTime"))
-        write_photo(dst / cam.name, truth, t_dark, k_camera, photo)
+        write_photo(dst / cam.name, truth, (shutter, aperture), k_camera, f_number, photo)
+        given = shutter * (f_number / aperture) ** 2
         chosen[cam.name] = {"light": light["name"],
-                            "stops": round(math.log2(t_dark / t_was), 2)}
+                            "stops": round(math.log2(given / t_was), 2),
+                            "shutter_s": shutter, "f_number": round(aperture, 2),
+                            "still_clips": given > wanted * 1.001}
     for photo in sorted((folder / "photos").glob("*.jpg")):
         link = dst / photo.name
         if photo.name not in chosen and not link.exists():
