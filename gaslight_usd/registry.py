@@ -14,7 +14,7 @@ import importlib
 import logging
 import pkgutil
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .kinds import Kind
@@ -45,7 +45,6 @@ class Converter:
     description: str
     step: str
     priority: int = 0
-    options: dict[str, Any] = field(default_factory=dict)
     accepts: Callable[[dict[Kind, Any]], str | None] | None = None
     """Optional check of the actual inputs before running: ``None`` when this
     converter applies, else the reason it does not (e.g. "no brackets"). When

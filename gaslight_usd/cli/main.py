@@ -17,7 +17,6 @@ from ..errors import (
     GaslightError,
 )
 from ..provenance import tool_version
-from ._pending import register_pending
 from ._points import attach_point_values
 
 # OS errors that mean "this path cannot be used as given" (exit 3, bad input).
@@ -60,14 +59,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {tool_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMANDS if only is None else [only]:
-        try:
-            module = importlib.import_module(f"{__package__}._{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__package__}._{name}":
-                raise
-            register_pending(sub, name)
-            continue
-        module.register(sub)
+        importlib.import_module(f"{__package__}._{name}").register(sub)
     return parser
 
 
