@@ -3,6 +3,9 @@ small real HDR panoramas that ship with the project (``tests/data/hdri``)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -15,6 +18,16 @@ TEST_HDRI = REPO / "tests" / "data" / "hdri"
 """Eight CC0 panoramas, 256x128 half-float EXR, made from the shared set by
 tests/data/make_test_hdris.py (see tests/data/README.md). Tests read these, never
 ../shared/data, so they run the same on every clone."""
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    """Run the CLI in this process (a subprocess costs seconds of imports)."""
+    from gaslight_usd.cli.main import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def write_jpeg(path: Path, pixels_u8: np.ndarray, exposure_time: float | None = None,

@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
-import subprocess
 from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TEST_HDRI, write_jpeg
+from conftest import TEST_HDRI, run_cli, write_jpeg
 
-from gaslight_usd.cli.main import main
 from gaslight_usd.errors import InputError
 from gaslight_usd.imageio import read_image
 from gaslight_usd.uplift import GAMMA22, SRGB
@@ -143,14 +139,6 @@ def test_bad_brackets_get_clear_messages(tmp_path):
     bad.write_text("view one.jpg two.jpg\n")
     with pytest.raises(InputError, match="line 1"):
         read_group_file(bad)
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    """Run the CLI in this process (a subprocess costs seconds of imports)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(list(args))
-    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def test_cli_auto_merges_brackets_and_refuses_single_exposures(tmp_path):

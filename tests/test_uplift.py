@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-from conftest import TEST_HDRI, write_jpeg
+from conftest import TEST_HDRI, run_cli, write_jpeg
 
 from gaslight_usd import colour
-from gaslight_usd.cli.main import main
 from gaslight_usd.errors import InputError
 from gaslight_usd.imageio import read_image
 from gaslight_usd.uplift import (
@@ -453,14 +449,6 @@ def write_png16(path: Path, pixels: np.ndarray) -> Path:
     out.write_image(data)
     out.close()
     return path
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    """Run the CLI in this process (a subprocess costs seconds of imports)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(list(args))
-    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def test_cli_recursive_writes_views_with_metadata(tmp_path):
