@@ -129,10 +129,22 @@ def _light_line(light: dict[str, Any]) -> dict[str, Any]:
     return {k: light[k] for k in keys if k in light}
 
 
-def describe_usd(path: Path) -> dict[str, Any]:
-    from pxr import Usd, UsdGeom
+def usd_error_line(exc: Exception) -> str:
+    """The first line of what USD's error says after its C++ location prefix."""
+    try:
+        text = " ".join(str(exc).split())
+    except UnicodeDecodeError:  # the message quotes the file's own (binary) bytes
+        return "its text is not UTF-8"
+    return text.split(" : ", 1)[-1][:200] if " : " in text else text[:200]
 
-    stage = Usd.Stage.Open(str(path))
+
+def describe_usd(path: Path) -> dict[str, Any]:
+    from pxr import Tf, Usd, UsdGeom
+
+    try:
+        stage = Usd.Stage.Open(str(path))
+    except Tf.ErrorException as exc:  # a damaged layer: USD's parser says where
+        raise InputError(f"not a readable USD stage ({usd_error_line(exc)})", path) from None
     if stage is None:
         raise InputError("cannot open USD stage", path)
     kinds: Counter[str] = Counter()

@@ -133,9 +133,25 @@ def read_ply(path: str | Path) -> SplatScene:
         normals=normals,
         metadata=_parse_comments(list(data.comments)),
     )
-    if table is not None and np.isfinite(table).all():  # one pass over the file's values
-        return scene
-    bad = ~np.isfinite(scene.positions).all(axis=1) | ~np.isfinite(scene.sh).all(axis=(1, 2))
+    bad = out_of_range(scene)
     if bad.any():
-        raise InputError(f"{int(bad.sum())} splat(s) have NaN or infinite values", path)
+        raise InputError(f"{int(bad.sum())} splat(s) have NaN, infinite or out-of-range "
+                         f"values (the first: splat {int(np.argmax(bad))}); a damaged file?",
+                         path)
     return scene
+
+
+MAX_COORDINATE = 1e15
+MAX_LOG_SCALE = 60.0
+"""exp(60) ~ 1e26: a larger log scale overflows float32 once squared."""
+
+
+def out_of_range(scene: SplatScene) -> np.ndarray:
+    """Per splat: any value NaN or infinite, a coordinate beyond :data:`MAX_COORDINATE`,
+    a log scale beyond :data:`MAX_LOG_SCALE` or a zero rotation quaternion (what a
+    damaged file holds; drawing them would fail later, far from the cause)."""
+    bad = ~np.isfinite(scene.sh).all(axis=(1, 2)) | ~np.isfinite(scene.opacity_logits)
+    bad |= ~(np.abs(scene.positions) <= MAX_COORDINATE).all(axis=1)
+    bad |= ~(np.abs(scene.log_scales) <= MAX_LOG_SCALE).all(axis=1)
+    norm = np.linalg.norm(scene.rotations.astype(np.float64), axis=1)
+    return bad | ~(np.isfinite(norm) & (norm > 0))

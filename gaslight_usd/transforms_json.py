@@ -63,6 +63,15 @@ def _intrinsics(entry: dict, base: dict, path: Path, image: Path) -> dict[str, f
             **{k: float(get(k, 0.0)) for k in DISTORTION_KEYS}}
 
 
+def _frame_values(entry: dict, data: dict, path: Path) -> tuple[dict[str, float], np.ndarray]:
+    """A frame's intrinsics (checked positive and finite) and camera-to-world matrix."""
+    k = _intrinsics(entry, data, path, path.parent / str(entry["file_path"]))
+    if k["w"] <= 0 or k["h"] <= 0 or not all(math.isfinite(v) for v in k.values()) or \
+            k["fx"] <= 0 or k["fy"] <= 0:
+        raise ValueError(f"image size and focal length must be positive and finite: {k}")
+    return k, np.asarray(entry["transform_matrix"], np.float64)
+
+
 def transforms_path(path: str | Path) -> Path:
     """``path`` itself, or ``path/transforms.json`` for a folder."""
     path = Path(path)
@@ -81,13 +90,18 @@ def read_transforms(path: str | Path) -> ColmapModel:
     frames = data.get("frames") if isinstance(data, dict) else None
     if not frames:
         raise InputError("transforms.json has no 'frames'", path)
+    if not isinstance(frames, list):
+        raise InputError("'frames' is not a list", path)
     cameras, intr, cam_ids, keys, notes = [], {}, [], {}, []
     for i, entry in enumerate(frames):
-        if "file_path" not in entry or "transform_matrix" not in entry:
+        if not isinstance(entry, dict) or "file_path" not in entry or \
+                "transform_matrix" not in entry:
             raise InputError(f"frame {i} lacks file_path or transform_matrix", path)
-        image = (path.parent / entry["file_path"])
-        k = _intrinsics(entry, data, path, image)
-        c2w = np.asarray(entry["transform_matrix"], np.float64)
+        try:
+            k, c2w = _frame_values(entry, data, path)
+        except (TypeError, ValueError, OverflowError) as exc:  # wrong types, ragged arrays
+            raise InputError(f"frame {i}: a value is not what transforms.json holds ({exc})",
+                             path) from None
         if c2w.shape == (3, 4):
             c2w = np.vstack([c2w, [0, 0, 0, 1]])
         if c2w.shape != (4, 4) or not np.all(np.isfinite(c2w)):
