@@ -206,6 +206,31 @@ photos = "{tmp_path / 'empty'}"
     assert not out.exists()
 
 
+def manifest_examples() -> list[str]:
+    """The manifest the README shows and the one ``batch --help`` shows."""
+    from gaslight_usd.cli._batch import DESCRIPTION
+
+    from .conftest import REPO
+
+    readme = (REPO / "README.md").read_text().split("## Batch", 1)[1]
+    help_lines = DESCRIPTION.split("(tables merge):\n", 1)[1].split("\n  other keys:")[0]
+    return [readme.split("```toml\n", 1)[1].split("```", 1)[0],
+            "\n".join(line[2:] for line in help_lines.splitlines())]
+
+
+@pytest.mark.parametrize("where", ["README", "--help"])
+def test_the_example_manifests_are_valid(where):
+    import tomllib
+
+    from gaslight_usd.jsoncheck import first_problem
+
+    text = manifest_examples()[["README", "--help"].index(where)]
+    data = tomllib.loads(text)
+    jsonschema.validate(data, schema("manifest.schema.json"))
+    assert first_problem(data, schema("manifest.schema.json")) is None
+    assert [s["name"] for s in data["scenes"]] == ["kitchen", "hall"]
+
+
 # -- running ------------------------------------------------------------------------
 def test_scenes_run_in_processes_and_a_failing_one_does_not_stop_the_others(
         tmp_path, photo_folder):
@@ -339,6 +364,16 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     proc.wait(timeout=60)
     finished_a = mtimes(out / "a")
     assert read_ply(out / "a" / "splats.ply").count == 600
+    # a writer SIGKILLed inside its atomic write leaves its temporary file, never the output
+    writer = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time\nfrom gaslight_usd.atomic import atomic_path\n"
+        "with atomic_path(sys.argv[1]) as tmp:\n"
+        "    tmp.write_bytes(b'ply\\nformat binary_little_endian 1.0\\n')\n"
+        "    time.sleep(120)\n"), str(out / "b" / "splats.ply")])
+    wait_for(lambda: leftovers(out / "b"))
+    writer.kill()
+    writer.wait()
+    assert leftovers(out / "b") and not (out / "b" / "splats.ply").exists()
 
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
@@ -346,6 +381,8 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     assert [s["status"] for s in report["scenes"]] == ["skipped", "done"]
     assert mtimes(out / "a") == finished_a  # nothing of the finished scene redone
     assert not leftovers(out)
+    assert "removed 1 temporary file(s) a killed run left: .splats.partial-" in \
+        (out / "b" / "batch.log").read_text()
     for name in "ab":
         assert read_ply(out / name / "splats.ply").count == 600
         assert read_image(out / name / "hdri" / "probe_000.exr").pixels.shape == (16, 32, 3)
