@@ -4,8 +4,12 @@ they ask for, run it stage by stage with progress and timings, write
 
 Resuming: each finished stage is recorded in ``<out>/.gaslight-state.json``
 with a fingerprint of its converter, options and inputs (paths, sizes,
-modification times). A later run with the same fingerprint and the output
-still present skips the stage. Outputs are written atomically by converters,
+modification times) and one of the files it wrote. A later run with the same
+fingerprint and its outputs as they were written skips the stage; a stage
+whose output was deleted or edited since runs again, and so does every stage
+after it (their inputs change). :meth:`ChainRun.preview` says which stages a
+run would skip without running any (``batch --dry-run``, and a batch skips a
+scene whose stages all match). Outputs are written atomically by converters,
 so a killed stage leaves nothing that looks finished. A stage that was started
 with the same fingerprint and killed is told so (``StageContext.resume``): the
 fit then continues from its checkpoint instead of step 1.
@@ -95,6 +99,22 @@ class StageRecord:
     metrics: dict[str, Any] = field(default_factory=dict)
     metadata: dict[str, Any] = field(default_factory=dict)
     error: str | None = None
+    fingerprint: str | None = None
+    """sha256 of the converter, options, settings and inputs (paths, sizes, mtimes)."""
+    output_fingerprint: str | None = None
+    """sha256 of the files the stage wrote (paths, sizes, mtimes), as it wrote them."""
+
+
+@dataclass
+class StagePreview:
+    """What a run would do with one stage: skip it (its outputs match) or run it."""
+
+    name: str
+    converter: str
+    output: str
+    action: str
+    """``skip`` or ``run``."""
+    why: str
 
 
 def plan(available: Iterable[Kind], target: Kind, registry: Registry,
@@ -168,6 +188,22 @@ def _fingerprint_path(path: Path) -> list:
     return [str(path.resolve()), entries]
 
 
+def output_files(out_path: Path, metadata: Mapping[str, Any]) -> list[Path]:
+    """The files a stage wrote: its output and any others it lists in its metadata
+    (the USD export's layers beside ``scene.usda``, the HDRIs' cube maps)."""
+    listed = [*metadata.get("files", []),
+              *(f for probe in metadata.get("probes", []) for f in probe.get("files", []))]
+    extra = sorted({Path(f) for f in listed if isinstance(f, str)} - {Path(out_path)})
+    return [Path(out_path), *extra]
+
+
+def output_fingerprint(out_path: Path, metadata: Mapping[str, Any]) -> str:
+    """sha256 of a stage's written files as they are now (paths, sizes, mtimes)."""
+    blob = json.dumps([_fingerprint_path(p) for p in output_files(out_path, metadata)],
+                      default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
 def fingerprint(conv: Converter, inputs: Mapping[Kind, Artifact], options: Mapping,
                 settings: Settings) -> str:
     blob = json.dumps({
@@ -177,6 +213,17 @@ def fingerprint(conv: Converter, inputs: Mapping[Kind, Artifact], options: Mappi
         "settings": asdict(settings),
     }, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _finished(done: Mapping[str, Any] | None, key: str, out_path: Path) -> bool:
+    """Whether a stage's state says it finished with fingerprint ``key`` and its
+    written files are still as it wrote them (older states kept no output
+    fingerprint: the output existing then suffices)."""
+    if not done or done.get("fingerprint") != key or not out_path.exists():
+        return False
+    expected = done.get("output")
+    metadata = done.get("record", {}).get("metadata", {})
+    return expected is None or output_fingerprint(out_path, metadata) == expected
 
 
 class ChainRun:
@@ -219,15 +266,7 @@ class ChainRun:
         """
         artifacts: dict[Kind, Artifact] = {a.kind: a for a in given}
         self.given = list(artifacts.values())
-        for art in self.given:
-            if not art.path.exists():
-                raise InputError("no such file or folder", art.path)
-        steps: list[Converter] = []
-        for target in targets:
-            for conv in plan(artifacts.keys() | {c.output for c in steps}, target,
-                             self.registry, choose):
-                if conv not in steps:
-                    steps.append(conv)
+        steps = self._steps(artifacts, targets, choose)
         check_output(self.out_dir, folder=True)
         for kind, path in (outputs or {}).items():
             check_output(path, folder=_is_folder_output(kind, Path(path)))
@@ -243,8 +282,8 @@ class ChainRun:
                             self.out_dir / conv.output.default_name)
             key = fingerprint(conv, inputs, stage_options, self.settings)
             label = f"{index}/{total} {conv.step}"
-            done = state.get(conv.step)
-            if done and done.get("fingerprint") == key and out_path.exists():
+            if _finished(state.get(conv.step), key, out_path):
+                done = state[conv.step]
                 self.progress.message(f"[{label}] {conv.name}: already done, resuming after it")
                 record = StageRecord(**{**done["record"], "status": "resumed"})
                 self.records.append(record)
@@ -264,7 +303,7 @@ class ChainRun:
             record = StageRecord(
                 name=conv.step, converter=conv.name,
                 inputs={k.value: str(a.path) for k, a in inputs.items()},
-                output=str(out_path), status="running", seconds=0.0)
+                output=str(out_path), status="running", seconds=0.0, fingerprint=key)
             try:
                 result = conv.run(ctx)
             except BaseException as exc:
@@ -282,14 +321,70 @@ class ChainRun:
             record.status = "done"
             record.counts, record.metrics = result.counts, result.metrics
             record.metadata = result.metadata
+            record.output_fingerprint = output_fingerprint(out_path, result.metadata)
             self.records.append(record)
             artifacts[conv.output] = Artifact(conv.output, out_path, result.metadata)
-            state[conv.step] = {"fingerprint": key, "record": asdict(record)}
+            state[conv.step] = {"fingerprint": key, "output": record.output_fingerprint,
+                                "record": asdict(record)}
             self._save_state(state)
             self.write_report(status="running")
             self.progress.message(f"[{label}] done in {record.seconds:.1f} s")
         self.write_report(status="done")
         return artifacts
+
+    def _steps(self, artifacts: Mapping[Kind, Artifact], targets: Iterable[Kind],
+               choose: Mapping[str, str] | None) -> list[Converter]:
+        """The converters that make ``targets`` from ``artifacts``, in order."""
+        for art in artifacts.values():
+            if not art.path.exists():
+                raise InputError("no such file or folder", art.path)
+        steps: list[Converter] = []
+        for target in targets:
+            for conv in plan(artifacts.keys() | {c.output for c in steps}, target,
+                             self.registry, choose):
+                if conv not in steps:
+                    steps.append(conv)
+        return steps
+
+    def preview(self, given: Iterable[Artifact], targets: Iterable[Kind],
+                choose: Mapping[str, str] | None = None,
+                options: Mapping[str, Mapping[str, Any]] | None = None,
+                resume: bool = True) -> list[StagePreview]:
+        """What :meth:`run` would do with each stage, writing nothing.
+
+        A stage is skipped when its fingerprint and its written files match the
+        state; a stage after one that runs runs too (its input is remade).
+        """
+        artifacts: dict[Kind, Artifact] = {a.kind: a for a in given}
+        steps = self._steps(artifacts, targets, choose)
+        state = self._load_state() if resume else {}
+        remade: str | None = None
+        out: list[StagePreview] = []
+        for conv in steps:
+            stage_options = dict((options or {}).get(conv.step, {}))
+            inputs = {k: artifacts[k] for k in conv.inputs}
+            if remade is None:  # inputs exist as they are: the converter can be chosen
+                conv = self._applicable(conv, inputs, explicit=conv.step in (choose or {}))
+            out_path = self.out_dir / conv.output.default_name
+            artifacts[conv.output] = Artifact(conv.output, out_path)
+            done = state.get(conv.step)
+            if remade is not None:
+                action, why = "run", f"after {remade} (its input is remade)"
+            elif not resume:
+                action, why = "run", "fresh run"
+            elif _finished(done, key := fingerprint(conv, inputs, stage_options,
+                                                     self.settings), out_path):
+                action, why = "skip", "outputs match inputs and options"
+            elif not done:
+                action, why = "run", "not run yet"
+            elif done.get("fingerprint") != key:
+                action, why = "run", "inputs or options changed"
+            else:
+                action, why = "run", "its output is missing or was changed"
+            if action == "run" and remade is None:
+                remade = conv.step
+            out.append(StagePreview(conv.step, conv.name, str(out_path), action, why))
+        return out
 
     def _applicable(self, conv: Converter, inputs: dict[Kind, Artifact],
                     explicit: bool) -> Converter:

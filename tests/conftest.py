@@ -72,3 +72,25 @@ def bundled_hdri(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     ``shared_sources()``, the known clamp levels) reads them."""
     monkeypatch.setenv("GASLIGHT_HDRI_DIR", str(TEST_HDRI))
     yield TEST_HDRI
+
+
+@pytest.fixture(scope="session")
+def posed_hdr_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Nine 48x48 HDR views of a small closed synthetic room (bright emitters inside),
+    their true COLMAP model with sparse points from the truth (no triangulation): the
+    cheapest real input a fit, an export and HDRIs run on (``hdr/``, ``sparse/``)."""
+    from gaslight_usd.colmap import ColmapModel, write_model
+    from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
+    from gaslight_usd.imageio import write_exr
+    from gaslight_usd.render import render
+
+    root = tmp_path_factory.mktemp("posed_hdr")
+    truth, cams = closed_scene(), ring_cameras()
+    (root / "hdr").mkdir()
+    for cam in cams:
+        write_exr(root / "hdr" / f"{cam.name[:-4]}.exr", render(truth, cam).image.numpy(),
+                  "lin_rec709", {"gaslight:exposure_scale": 1.0}, half=False)
+    points = truth.positions[::3]
+    write_model(root / "sparse", ColmapModel(
+        cameras=cams, points=points, point_colours=np.full((len(points), 3), 128, np.uint8)))
+    return root
