@@ -61,7 +61,11 @@ def read_document(path: Path) -> Any:
     """The manifest as data: TOML for ``.toml``, JSON for ``.json`` (else either)."""
     if not path.is_file():
         raise InputError("no such manifest", path)
-    text = path.read_text(encoding="utf-8")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"not UTF-8 text (byte {exc.start}): a manifest is TOML or JSON",
+                         path) from None
     suffix = path.suffix.lower()
     try:
         if suffix == ".toml":

@@ -1,12 +1,13 @@
 """Damaged and hostile files into every subcommand that reads them (issue 19, item 3).
 
 Each case takes one good file (a photo as JPEG, PNG or TIFF, an HDR view as EXR, a 3DGS
-PLY, a USD stage, a COLMAP text model, a transforms.json), damages it (truncated, bytes
-flipped, a block zeroed, a number made NaN, huge or a word, a line dropped or doubled,
-emptied) and hands it to the subcommands that read it. Whatever it does, the answer is
-a clean one: exit 0 with the output written, or a non-zero exit with one
-``gaslight2usd: error:`` line naming the file, never an internal error or a traceback,
-and no output, half-written or whole. Seeded: the same cases every run.
+PLY, a USD stage, a COLMAP text model, a transforms.json, a batch manifest), damages
+it (truncated, bytes flipped, a block zeroed, a number made NaN, huge or a word, a
+line dropped or doubled, emptied) and hands it to the subcommands that read it.
+Whatever it does, the answer is a clean one: exit 0 with the output written (a dry
+run: nothing written), or a non-zero exit with one ``gaslight2usd: error:`` line
+naming the file, never an internal error or a traceback, and no output, half-written
+or whole. Seeded: the same cases every run.
 ``GASLIGHT_FUZZ_CASES=2000 pytest tests/test_fuzz.py`` runs more.
 """
 
@@ -29,7 +30,8 @@ from gaslight_usd.ply import write_ply
 from gaslight_usd.splats import SplatScene
 
 CASES = int(os.environ.get("GASLIGHT_FUZZ_CASES", "160"))
-KINDS = ("jpg", "png", "tif", "exr", "ply", "usda", "usdc", "colmap", "transforms")
+KINDS = ("jpg", "png", "tif", "exr", "ply", "usda", "usdc", "colmap", "transforms",
+         "manifest")
 NUMBER = re.compile(rb"-?\d+\.?\d*(?:e[-+]?\d+)?")
 HOSTILE_NUMBERS = (b"nan", b"inf", b"-inf", b"1e400", b"-1", b"0", b"99999999999", b"abc", b"")
 
@@ -68,7 +70,18 @@ def originals(tmp_path_factory) -> dict[str, Path]:
     shutil.copytree(example_room() / "sparse" / "0", sparse)
     assert run_cli("poses", "--from", str(sparse), "-o", str(root / "transforms.json"),
                    "-q").returncode == 0
-    return {"jpg": root / "photo.jpg", "png": root / "photo.png", "tif": root / "photo.tif",
+    photos = root / "shot" / "photos"
+    photos.mkdir(parents=True)
+    shutil.copy(root / "photo.jpg", photos / "a.jpg")
+    (root / "shots.toml").write_text(
+        '[defaults]\ntargets = ["splats", "usd", "hdri"]\npreset = "fast"\n'
+        'colour = { working_space = "ACEScg" }\n\n[[scenes]]\nname = "shot"\n'
+        'photos = "shot/photos"\nprobes = [[0, 1.5, 0], [1.2, 1.5, -0.8]]\n'
+        'camera_height = 1.6\n[scenes.options.hdri]\nsize = 256\n')
+    assert run_cli("batch", str(root / "shots.toml"), "-o", str(root / "b"),
+                   "--dry-run").returncode == 0
+    return {"manifest": root / "shots.toml", "jpg": root / "photo.jpg",
+            "png": root / "photo.png", "tif": root / "photo.tif",
             "exr": root / "view.exr", "ply": root / "splats.ply",
             "usda": root / "scene.usda", "usdc": root / "layer.usdc",
             "colmap": sparse, "transforms": root / "transforms.json"}
@@ -121,7 +134,9 @@ def damaged_copy(kind: str, good: Path, where: Path, rng: np.random.Generator
         target.write_bytes(data)
         return folder, f"{target.name}: {how}"
     target = where / good.name
-    data, how = damage(good.read_bytes(), rng, text=kind in ("usda", "transforms"))
+    data, how = damage(good.read_bytes(), rng, text=kind in ("usda", "transforms", "manifest"))
+    if kind == "manifest":  # its scene's photos, where the manifest says they are
+        shutil.copytree(good.parent / "shot", where / "shot")
     target.write_bytes(data)
     return target, how
 
@@ -142,6 +157,8 @@ def commands(kind: str, path: Path, out: Path) -> list[tuple[list[str], Path | N
                   "--at=0,0,0"], out / "probe.exr")]
     if kind in ("usda", "usdc"):
         return [(["info", str(path)], None)]
+    if kind == "manifest":  # checked whole before any work; --dry-run writes nothing
+        return [(["batch", str(path), "-o", str(out / "batch"), "--dry-run"], out / "batch")]
     return [(["poses", "--from", str(path), "-o", str(out / "model")], out / "model")]
 
 
@@ -164,12 +181,14 @@ def test_damaged_files_get_a_clear_answer(case, originals, tmp_path):
             errors = [ln for ln in res.stderr.splitlines() if ln.startswith("gaslight2usd: error:")]
             assert len(errors) == 1, said
             named = {path.name, path.parent.name, "sparse", "cameras.txt", "images.txt",
-                     "points3D.txt", "transforms.json"}
+                     "points3D.txt", "transforms.json", "shots.toml"}
             assert any(n in errors[0] for n in named), said
             if output is not None:
                 assert not output.exists(), f"{said}\nleft {output}"
-        elif output is not None:
+        elif output is not None and "--dry-run" not in argv:
             assert output.exists(), said
+        elif output is not None:
+            assert not output.exists(), f"{said}\n--dry-run wrote {output}"
         left = [p.name for p in (tmp_path / "out").rglob("*") if PARTIAL_MARK in p.name]
         assert not left, f"{said}\ntemporary files left: {left}"
 
