@@ -55,6 +55,7 @@ from .outputs import check_output
 from .pipeline import artifacts_from_paths, run_job, with_working_size
 from .progress import Progress, format_seconds
 from .provenance import tool_version
+from .stop_signals import claim_stop_signals, stop_on_signals
 
 LOCK_FILE = ".batch.lock"
 DASK_LOG_FILE = "dask-workers.log"
@@ -198,42 +199,6 @@ def _interrupted(scene: Scene, seconds: float = 0.0, status: str = "interrupted"
 
 
 # -- signals ----------------------------------------------------------------------
-def _raise_interrupt_once(signum: int, frame: Any) -> None:
-    """SIGTERM or SIGINT: stop as Ctrl-C does (KeyboardInterrupt), once; a second
-    signal while the stop is under way is ignored so that cleanup is not cut short."""
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    raise KeyboardInterrupt
-
-
-def _claim_signals() -> None:
-    """SIGTERM and SIGINT raise KeyboardInterrupt (once) from here on.
-
-    pycolmap installs glog's failure handler for SIGTERM when it is imported: a
-    stage that imports it later would then die on SIGTERM with a stack dump and
-    no cleanup. Importing it first lets this handler win.
-    """
-    with contextlib.suppress(ImportError):
-        import pycolmap  # noqa: F401
-    signal.signal(signal.SIGTERM, _raise_interrupt_once)
-    signal.signal(signal.SIGINT, _raise_interrupt_once)
-
-
-@contextlib.contextmanager
-def _stop_on_signals() -> Iterator[None]:
-    """In the main thread: SIGTERM and SIGINT raise KeyboardInterrupt (once)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGINT)}
-    _claim_signals()
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
 def _exit_with_parent(parent: int) -> None:
     """In a batch's child: stop the scene (as Ctrl-C) when the batch process dies, so a
     killed batch leaves no orphan writing into OUT; hard exit if that does not end it."""
@@ -251,7 +216,7 @@ def _exit_with_parent(parent: int) -> None:
 
 def _child_main(scene: Scene, conn: Any, parent: int) -> None:
     """Entry point of a scene's process: its output to the log, its outcome to ``conn``."""
-    _claim_signals()
+    claim_stop_signals()
     _exit_with_parent(parent)
     out = Path(scene.job.out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -601,7 +566,7 @@ def run_batch(scenes: list[Scene], out_dir: str | Path, jobs: int = 1,
         display.finished(scene, outcome)
 
     interrupted = False
-    with display, _stop_on_signals():
+    with display, stop_on_signals():
         try:
             if dask:
                 _run_dask(to_run, dask, out_dir, display.started, finished, display.line)

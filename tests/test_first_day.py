@@ -130,3 +130,29 @@ def test_run_cube_reaches_the_hdri_step():
     args = build_parser("run").parse_args(attach_point_values(
         ["run", "x.ply", "-o", "out", "--cube", "--at", "-1,2,3"]))
     assert args.cube and args.at == [(-1.0, 2.0, 3.0)]
+
+
+def test_sigterm_stops_run_as_ctrl_c_does(tmp_path):
+    """A farm stops a job with SIGTERM: exit 130 and 'interrupted', temporary files gone,
+    no stack dump (pycolmap's SIGTERM handler would print one), a rerun resumes."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from gaslight_usd.atomic import PARTIAL_MARK
+    from gaslight_usd.locate import example_room
+
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-P", "-m", "gaslight_usd.cli.main", "run",
+           str(example_room() / "photos"), "-o", str(out), "--to", "splats"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while not (out / "hdr").is_dir() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)  # stop it once the uplift is written, in SfM or the fit
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err and "SIGTERM" not in err, err
+    assert not [p for p in out.rglob("*") if PARTIAL_MARK in p.name]

@@ -17,6 +17,7 @@ from ..errors import (
     GaslightError,
 )
 from ..provenance import tool_version
+from ..stop_signals import stop_on_signals
 from ._points import attach_point_values
 
 # OS errors that mean "this path cannot be used as given" (exit 3, bad input).
@@ -63,6 +64,11 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+STOPPABLE = ("run", "hdr", "poses", "fit", "export", "hdri", "bench")
+"""Long commands: SIGTERM stops them as Ctrl-C does (:mod:`gaslight_usd.stop_signals`)."""
+USES_PYCOLMAP = ("run", "poses", "fit", "bench")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = attach_point_values(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser(argv[0] if argv and argv[0] in SUBCOMMANDS else None)
@@ -73,6 +79,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     try:
+        if args.command in STOPPABLE:
+            with stop_on_signals(preload_pycolmap=args.command in USES_PYCOLMAP):
+                return int(args.handler(args) or 0)
         return int(args.handler(args) or 0)
     except GaslightError as exc:
         print(f"gaslight2usd: error: {exc}", file=sys.stderr)
