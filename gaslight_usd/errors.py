@@ -48,6 +48,10 @@ class UsageError(GaslightError):
     exit_code = EXIT_USAGE
 
 
+class FitDiverged(GaslightError):
+    """The optimisation produced NaN or infinite values: stopped before they reach a file."""
+
+
 class NotBuiltYet(GaslightError):
     """A subcommand or method that the project has not built yet."""
 

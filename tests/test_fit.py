@@ -302,3 +302,18 @@ def test_a_gpu_fit_runs_end_to_end(synthetic):
     assert isinstance(result.scene.positions, np.ndarray) and result.scene.count > 100
     assert result.metrics["held_out_pu21_psnr"] > 18.0
     assert result.metrics["held_out_log_lum_rmse_stops"] < 0.8
+
+
+def test_a_diverging_fit_is_caught_and_named(synthetic):
+    from gaslight_usd.errors import FitDiverged, InputError
+
+    root, _, _ = synthetic
+    data = load_fit_data(root / "hdr", root / "sparse")
+    # a step far too long: colours overflow within a few steps, caught before any file
+    with pytest.raises(FitDiverged, match=r"diverged at step \d+ of 40 on view view_\d+"):
+        fit_splats(data, tiny(iterations=40, lr_colour=1e3), seed=0)
+    # a view handed over in memory with an infinite pixel is named before any work
+    data.images[2] = data.images[2].copy()
+    data.images[2][5, 5] = np.inf  # 3 channels
+    with pytest.raises(InputError, match=rf"view {data.names[2]} holds 3 NaN or infinite"):
+        fit_splats(data, tiny(iterations=40), seed=0)

@@ -37,7 +37,7 @@ import torch
 
 from ..cameras import PinholeCamera
 from ..devices import resolve_device
-from ..errors import InputError
+from ..errors import FitDiverged, InputError
 from ..progress import Progress
 from ..render import render
 from ..splats import SplatScene
@@ -99,6 +99,10 @@ class Trainer:
         self.progress = progress or Progress(quiet=True)
         self.checkpoint = Path(checkpoint) if checkpoint else None
         self.device = device
+        for name, image in zip(data.names, data.images, strict=True):
+            bad = int(np.count_nonzero(~np.isfinite(image)))
+            if bad:  # files are checked as read; views handed over in memory are not
+                raise InputError(f"view {name} holds {bad} NaN or infinite value(s)")
         self.train, self.held = data.split(config.holdout_every)
         self.extent = scene_extent(data, self.train)
         self.targets = [torch.as_tensor(im, device=device) for im in data.images]
@@ -304,6 +308,12 @@ class Trainer:
             if cfg.elongation_weight:
                 loss = loss + cfg.elongation_weight * elongation_penalty(
                     self.model.t["log_scales"], cfg.elongation_limit)
+            if not bool(torch.isfinite(loss)):
+                raise FitDiverged(
+                    f"the fit diverged at step {self.step + 1} of {cfg.iterations} on view "
+                    f"{self.data.names[view]} (loss {float(loss)}); nothing was written. A "
+                    "view with NaN or huge values, or a learning rate too high for this "
+                    "scene: check the views with 'gaslight2usd info', try another --seed")
             loss.backward()
             with torch.no_grad():
                 g = out.means2d.grad
