@@ -64,8 +64,14 @@ class SfmOptions:
     """"auto": 2:1 photos are lat-long panoramas; "on": all are; "off": none."""
     seed: int = 0
     threads: int = 1
-    """COLMAP threads. 1 keeps the result the same from run to run (threaded matching
-    and mapping order their work by timing); -1 uses every core, faster on big sets."""
+    """Threads of the mapping (and of the triangulation with known poses). 1 keeps the
+    result the same from run to run (threaded bundle adjustment sums in the order its
+    threads finish); -1 uses every core."""
+    matching_threads: int = -1
+    """Threads of the feature matching and its geometric verification (-1: every core).
+    Each pair's RANSAC is seeded by ``seed``, so the verified pairs do not depend on the
+    threads' timing (three solves of the example with 2 matching threads and one
+    extraction thread gave identical poses and points)."""
     extraction_threads: int = -1
     """Threads of the feature extraction (-1: every core). With 12 MP photos decoding and
     SIFT are most of the SfM's time. Threaded extraction writes the photos' features in
@@ -160,6 +166,7 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
         images = work / "images"
         images.mkdir()
         names, owners, sizes = _stage_photos(paths, images, opts)
+        phases = {"stage_s": time.perf_counter() - t0}
         db_path = work / "database.db"
         pycolmap.set_random_seed(opts.seed)
         with colmap_logging(opts.verbose):
@@ -205,14 +212,19 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
                                           extraction_options=extraction,
                                           device=pycolmap.Device.cpu)
                 constant_cameras = _apply_panorama_rig(db_path, set(face_names))
+            phases["extract_s"] = time.perf_counter() - t0 - sum(phases.values())
             progress.message(f"matching ({opts.matcher})")
-            matching = pycolmap.FeatureMatchingOptions(num_threads=opts.threads)
+            matching = pycolmap.FeatureMatchingOptions(num_threads=opts.matching_threads)
+            verification = _verification_options(opts.seed)
             if opts.matcher == "exhaustive":
                 pycolmap.match_exhaustive(db_path, matching_options=matching,
+                                          verification_options=verification,
                                           device=pycolmap.Device.cpu)
             else:
                 pycolmap.match_sequential(db_path, matching_options=matching,
+                                          verification_options=verification,
                                           device=pycolmap.Device.cpu)
+            phases["match_s"] = time.perf_counter() - t0 - sum(phases.values())
             mapping = pycolmap.IncrementalPipelineOptions(
                 num_threads=opts.threads, random_seed=opts.seed, min_model_size=3)
             mapping.mapper.init_min_num_inliers = opts.init_min_inliers
@@ -231,6 +243,7 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             recs = pycolmap.incremental_mapping(db_path, images, work / "sparse",
                                                 options=mapping,
                                                 next_image_callback=next_image)
+            phases["map_s"] = time.perf_counter() - t0 - sum(phases.values())
             model_names = _reconstruction_names(recs)
             best = max(recs, key=lambda k: recs[k].num_reg_images()) if recs else None
             stats, reasons = _diagnose(db_path, names, model_names, best)
@@ -253,9 +266,20 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
     result = SfmResult(model=model, photos=list(owners), registered=registered,
                        unregistered=unregistered, seconds=time.perf_counter() - t0,
                        stats={**stats, "reconstructions": len(recs),
-                              "points": len(model.points)}, warnings=warnings)
+                              "points": len(model.points),
+                              **{k: round(v, 3) for k, v in phases.items()}},
+                       warnings=warnings)
     _judge(result, opts, paths[0].parent)
     return result
+
+
+def _verification_options(seed: int) -> Any:
+    """Geometric verification whose RANSAC is seeded (COLMAP's default, -1, seeds each
+    matching thread from the clock, so verified pairs could differ from run to run)."""
+    import pycolmap
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = seed
+    return verification
 
 
 def _exif_focal_prior(paths: list[Path], sizes: dict[str, tuple[int, int]]
@@ -426,7 +450,9 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
             progress.message("matching (exhaustive)")
             pycolmap.match_exhaustive(
                 db_path, matching_options=pycolmap.FeatureMatchingOptions(
-                    num_threads=opts.threads), device=pycolmap.Device.cpu)
+                    num_threads=opts.matching_threads),
+                verification_options=_verification_options(opts.seed),
+                device=pycolmap.Device.cpu)
             # The reconstruction must use the database's image, camera (and so rig
             # and frame) ids: write the given poses under those ids.
             db = pycolmap.Database.open(db_path)

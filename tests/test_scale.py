@@ -147,6 +147,15 @@ def test_run_uplifts_at_the_presets_uplift_size_unless_told_to_keep_full_size():
     assert kept["uplift"]["max_size"] == 0  # --keep-hdr full
 
 
+def test_run_extracts_sfm_features_at_the_presets_size_unless_told():
+    from gaslight_usd.pipeline import with_working_size
+
+    assert with_working_size({})["poses"]["max_image_size"] == 640  # fast by default
+    assert with_working_size({"fit": {"preset": "best"}})["poses"]["max_image_size"] == 1600
+    given = with_working_size({"poses": {"max_image_size": 2000}, "fit": {"preset": "fast"}})
+    assert given["poses"]["max_image_size"] == 2000
+
+
 def test_the_scale_bench_measures_a_childs_peak_memory(tmp_path):
     grab = "import numpy as np; a = np.ones(400 * 2**20 // 8); a += 1"  # 400 MiB touched
     code, seconds, peak = run_measured([sys.executable, "-c", grab], tmp_path / "log")

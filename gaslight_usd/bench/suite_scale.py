@@ -13,9 +13,11 @@ photos, the scene does not (re-rendering 96 views takes too long for a bench).
 
 Default cases: 24 photos at 0.2 / 3 / 12 MP and 12 / 48 / 96 photos at 12 MP
 (fast preset); ``--photos`` and ``--megapixels`` give the grid, ``--preset``
-the presets; quick: 12 photos at 0.2 and 3 MP. Besides the runner's chart
-(wall seconds against peak memory) it draws ``scale_curves.png``: seconds and
-peak memory against the set's total megapixels, a line per photo size.
+the presets; quick: 12 photos at 0.2 and 3 MP. Each run's splats are scored at the
+example's probes (:func:`probe_accuracy`), so a faster run that lost accuracy shows.
+Besides the runner's chart (wall seconds against peak memory) it draws
+``scale_curves.png``: seconds and peak memory against the set's total megapixels, a
+line per photo size.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ X = ("seconds", "wall seconds (whole chain)")
 Y = ("peak_rss_gb", "peak memory (GB, largest resident set)")
 HIGHER_IS_BETTER = False
 TABLE = ("photos", "megapixels", "seconds", "peak_rss_gb", "uplift_s", "poses_s", "fit_s",
-         "export_s", "hdri_s", "splats")
+         "export_s", "hdri_s", "splats", "probe_pu21_psnr_aligned", "median_rotation_error_deg")
 EXAMPLE = example_room()
 STAGES = ("uplift", "poses", "fit", "export", "hdri")
 DEFAULT_CASES = ((24, 0.2), (24, 3.0), (24, 12.0), (12, 12.0), (48, 12.0), (96, 12.0))
@@ -150,6 +152,37 @@ def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
     return row
 
 
+def probe_accuracy(out: Path, example: Path = EXAMPLE) -> dict[str, float]:
+    """The run's splats scored at the example's probes, as the fit suite scores them.
+
+    The run solved its own poses (SfM frame, unknown scale): its cameras are
+    similarity-aligned onto the true ones by name, and each probe is drawn from the
+    true probe point mapped into the run's frame with the true frame's axes.
+    Medians over the probes (:func:`.suite_fit.probe_scores`, no relight).
+    """
+    import numpy as np
+
+    from ..frame import align_and_compare, split_similarity
+    from ..imageio import read_image
+    from ..ply import read_ply
+    from ..poses import read_poses
+    from ..render.envmap import PROBE_NEAR, render_latlong
+    from .suite_fit import probe_scores
+
+    cmp = align_and_compare(read_poses(out / "sparse"), read_poses(example / "sparse" / "0"))
+    s, rot, t = split_similarity(cmp["similarity"])  # x_true = s * rot @ x_run + t
+    scene = read_ply(out / "splats.ply")
+    info = json.loads((example / "probes" / "probes.json").read_text())
+    truths = [read_image(example / "probes" / p["name"]).pixels for p in info["probes"]]
+    panos = [render_latlong(scene, rot.T @ (np.asarray(p["position"], np.float64) - t) / s,
+                            truth.shape[1], near=PROBE_NEAR / s, rotation=rot)
+             for p, truth in zip(info["probes"], truths, strict=True)]
+    scores = probe_scores(panos, truths, relight=False)
+    return {"probe_pu21_psnr_aligned": round(scores["probe_pu21_psnr_aligned"], 3),
+            "probe_log_lum_rmse": round(scores["probe_log_lum_rmse"], 4),
+            "median_rotation_error_deg": round(cmp["median_rotation_error_deg"], 4)}
+
+
 def cases(options: dict[str, Any]) -> list[tuple[int, float]]:
     counts, sizes = options.get("photos"), options.get("megapixels")
     if counts or sizes:
@@ -174,6 +207,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
             if progress is not None:
                 progress.message(f"{preset}: {count} photos of {w}x{h}")
             row = run_case(folder, out / f"{preset}-{count}x{w}x{h}", preset)
+            if row["exit_code"] == 0:
+                row.update(probe_accuracy(out / f"{preset}-{count}x{w}x{h}"))
             rows.append({"method": preset, "setting": f"{count} x {w * h / 1e6:.1f} MP",
                          "photos": count, "megapixels": round(w * h / 1e6, 2),
                          "width": w, "height": h, **row})

@@ -128,6 +128,19 @@ def uplift_size(config: FitConfig) -> int:
     return max(config.working_size, UPLIFT_MIN_SIZE)
 
 
+SFM_IMAGE_SIZES: dict[str, int] = {"fast": 640, "balanced": 640, "best": 1600}
+"""Long side (pixels) ``run`` extracts SfM features at, per preset. Matching time grows
+with the features' count, so with the square of this size, and a 12 MP photo shrunk to
+it keeps the example's pose accuracy as shot at 480 x 360; the enlarged example carries
+no detail finer than that, so ``best`` keeps COLMAP's usual 1600 for real detail.
+Measured with ``gaslight2usd bench --suite poses --megapixels 12``."""
+
+
+def sfm_image_size(name: str) -> int:
+    """The SfM feature size ``run`` uses with preset ``name`` (1600 for an unknown one)."""
+    return SFM_IMAGE_SIZES.get(name, SFM_IMAGE_SIZES["best"])
+
+
 def preset(name: str) -> FitConfig:
     if name not in PRESETS:
         raise KeyError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
