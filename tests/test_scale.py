@@ -150,10 +150,12 @@ def test_run_uplifts_at_the_presets_uplift_size_unless_told_to_keep_full_size():
 def test_run_extracts_sfm_features_at_the_presets_size_unless_told():
     from gaslight_usd.pipeline import with_working_size
 
-    assert with_working_size({})["poses"]["max_image_size"] == 640  # fast by default
-    assert with_working_size({"fit": {"preset": "best"}})["poses"]["max_image_size"] == 1600
-    given = with_working_size({"poses": {"max_image_size": 2000}, "fit": {"preset": "fast"}})
-    assert given["poses"]["max_image_size"] == 2000
+    assert with_working_size({})["poses"] == {"max_image_size": 640,  # fast by default
+                                              "max_features": 1024}
+    best = with_working_size({"fit": {"preset": "best"}})["poses"]
+    assert best == {"max_image_size": 1600, "max_features": 8192}
+    given = with_working_size({"poses": {"max_image_size": 2000, "scale": 2.0}})["poses"]
+    assert given == {"max_image_size": 2000, "max_features": 1024, "scale": 2.0}
 
 
 def test_the_scale_bench_measures_a_childs_peak_memory(tmp_path):

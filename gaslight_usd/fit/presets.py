@@ -128,17 +128,23 @@ def uplift_size(config: FitConfig) -> int:
     return max(config.working_size, UPLIFT_MIN_SIZE)
 
 
-SFM_IMAGE_SIZES: dict[str, int] = {"fast": 640, "balanced": 640, "best": 1600}
-"""Long side (pixels) ``run`` extracts SfM features at, per preset. Matching time grows
-with the features' count, so with the square of this size, and a 12 MP photo shrunk to
-it keeps the example's pose accuracy as shot at 480 x 360; the enlarged example carries
-no detail finer than that, so ``best`` keeps COLMAP's usual 1600 for real detail.
-Measured with ``gaslight2usd bench --suite poses --megapixels 12``."""
+SFM_OPTIONS: dict[str, dict[str, int]] = {
+    "fast": {"max_image_size": 640, "max_features": 1024},
+    "balanced": {"max_image_size": 640, "max_features": 8192},
+    "best": {"max_image_size": 1600, "max_features": 8192},
+}
+"""SfM feature size (long side, pixels) and most SIFT features per photo that ``run``
+uses with each preset. Matching grows with the square of the features' count; a 12 MP
+photo shrunk to 640 px keeps the example's pose accuracy as shot at 480 x 360 (at 1024
+and 1600 one camera of 24 went astray), and 1024 features there are about the 480 x 360
+photos' own count. The enlarged example has no detail finer than 480 x 360, so ``best``
+keeps COLMAP's usual 1600 for real photos' detail. Measured with ``gaslight2usd bench
+--suite poses --megapixels 12``."""
 
 
-def sfm_image_size(name: str) -> int:
-    """The SfM feature size ``run`` uses with preset ``name`` (1600 for an unknown one)."""
-    return SFM_IMAGE_SIZES.get(name, SFM_IMAGE_SIZES["best"])
+def sfm_options(name: str) -> dict[str, int]:
+    """The SfM options ``run`` uses with preset ``name`` (``best``'s for an unknown one)."""
+    return dict(SFM_OPTIONS.get(name, SFM_OPTIONS["best"]))
 
 
 def preset(name: str) -> FitConfig:
