@@ -112,7 +112,7 @@ def _posed_set(root: Path, photos: list[Path], width: int, height: int) -> Path:
 def _peak_of_run(photos: Path, sparse: Path, out: Path) -> tuple[float, dict]:
     cmd = [sys.executable, "-P", "-c", RUN_MAIN, "run", str(photos), "--poses", str(sparse),
            "-o", str(out), "--to", "splats", "--preset", "fast", "--budget", "2000", "-q"]
-    code, _, peak = run_measured(cmd, out.with_suffix(".log"))
+    code, _, peak, _ = run_measured(cmd, out.with_suffix(".log"))
     assert code == 0, out.with_suffix(".log").read_text()[-2000:]
     return peak, json.loads((out / "report.json").read_text())
 
@@ -160,10 +160,12 @@ def test_run_extracts_sfm_features_at_the_presets_size_unless_told():
 
 def test_the_scale_bench_measures_a_childs_peak_memory(tmp_path):
     grab = "import numpy as np; a = np.ones(400 * 2**20 // 8); a += 1"  # 400 MiB touched
-    code, seconds, peak = run_measured([sys.executable, "-c", grab], tmp_path / "log")
-    assert code == 0 and seconds > 0
+    code, seconds, peak, cpu = run_measured([sys.executable, "-c", grab], tmp_path / "log")
+    assert code == 0 and seconds > 0 and 0 < cpu < 60
     assert 400 / 1024 < peak < 400 / 1024 + 0.3
-    code, _, _ = run_measured([sys.executable, "-c", "raise SystemExit(3)"], tmp_path / "log")
+    spin = "import time; t = time.process_time()\nwhile time.process_time() - t < 1.0: pass"
+    assert 1.0 <= run_measured([sys.executable, "-c", spin], tmp_path / "log").cpu_seconds < 3
+    code = run_measured([sys.executable, "-c", "raise SystemExit(3)"], tmp_path / "log").code
     assert code == 3
 
 

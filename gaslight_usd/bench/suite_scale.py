@@ -29,7 +29,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..atomic import atomic_path
 from ..errors import GaslightError
@@ -41,7 +41,7 @@ DESCRIPTION = "whole chain on upscaled photos: seconds and peak memory vs photo 
 X = ("seconds", "wall seconds (whole chain)")
 Y = ("peak_rss_gb", "peak memory (GB, largest resident set)")
 HIGHER_IS_BETTER = False
-TABLE = ("photos", "megapixels", "seconds", "peak_rss_gb", "uplift_s", "poses_s", "fit_s",
+TABLE = ("photos", "megapixels", "seconds", "cpu_s", "peak_rss_gb", "uplift_s", "poses_s", "fit_s",
          "export_s", "hdri_s", "splats", "probe_pu21_psnr_aligned", "median_rotation_error_deg")
 EXAMPLE = example_room()
 STAGES = ("uplift", "poses", "fit", "export", "hdri")
@@ -113,13 +113,24 @@ def photo_set(photos: list[Path], folder: Path, count: int) -> Path:
 # is forked from a small interpreter, so its peak is its own.
 _LAUNCH = ("import os, subprocess, sys; p = subprocess.Popen(sys.argv[2:]); "
            "_, status, usage = os.wait4(p.pid, 0); "
-           "open(sys.argv[1], 'w').write(str(usage.ru_maxrss)); "
+           "open(sys.argv[1], 'w').write(f'{usage.ru_maxrss} "
+           "{usage.ru_utime + usage.ru_stime}'); "
            "sys.exit(os.waitstatus_to_exitcode(status))")
 
 
-def run_measured(command: list[str], log: Path) -> tuple[int, float, float]:
-    """Run ``command``; (exit status, wall seconds, peak resident set in GB of it and its
-    waited-for children, from ``os.wait4`` in a small launcher process)."""
+class Measured(NamedTuple):
+    code: int
+    seconds: float
+    """Wall seconds."""
+    peak_gb: float
+    """Peak resident set (GiB) of the command and its waited-for children."""
+    cpu_seconds: float
+    """User + system CPU seconds of all their threads: on a machine shared with other
+    work it still compares runs when wall seconds do not."""
+
+
+def run_measured(command: list[str], log: Path) -> Measured:
+    """Run ``command`` through a small launcher process that reads its ``os.wait4``."""
     peak_file = log.with_name(log.name + ".peak")
     peak_file.unlink(missing_ok=True)
     t0 = time.perf_counter()
@@ -127,9 +138,10 @@ def run_measured(command: list[str], log: Path) -> tuple[int, float, float]:
         code = subprocess.run([sys.executable, "-P", "-c", _LAUNCH, str(peak_file), *command],
                               stdout=out, stderr=subprocess.STDOUT).returncode
     seconds = time.perf_counter() - t0
-    peak_kib = float(peak_file.read_text()) if peak_file.is_file() else 0.0
+    peak_kib, cpu = (map(float, peak_file.read_text().split()) if peak_file.is_file()
+                     else (0.0, 0.0))
     peak_file.unlink(missing_ok=True)
-    return code, seconds, peak_kib / 1024 ** 2  # KiB -> GiB
+    return Measured(code, seconds, peak_kib / 1024 ** 2, cpu)  # KiB -> GiB
 
 
 def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
@@ -137,9 +149,9 @@ def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
     """One whole-chain run of ``photos`` into ``out``: seconds per stage, peak memory."""
     cmd = [sys.executable, "-P", "-c", RUN_MAIN, "run", str(photos), "-o", str(out), "--preset",
            preset, "--fresh", "-q", *extra]
-    code, wall, peak = run_measured(cmd, out.with_suffix(".log"))
-    row: dict[str, Any] = {"seconds": round(wall, 2), "peak_rss_gb": round(peak, 3),
-                           "exit_code": code}
+    code, wall, peak, cpu = run_measured(cmd, out.with_suffix(".log"))
+    row: dict[str, Any] = {"seconds": round(wall, 2), "cpu_s": round(cpu, 1),
+                           "peak_rss_gb": round(peak, 3), "exit_code": code}
     report = out / "report.json"
     if report.exists():
         stages = json.loads(report.read_text())["stages"]
