@@ -76,9 +76,8 @@ class SfmOptions:
     """Scale the geometric verification's RANSAC error (COLMAP's 4 px, meant for features
     found at the photo's own size) by how much the photos were shrunk for features: a
     12 MP photo's features found at 640 px are 6 px apart in its own pixels, and a
-    4 px bound then rejects good matches and draws more samples (on the 12 MP example,
-    ``gaslight2usd bench --suite poses --megapixels 12``, matching took 0.7 of the CPU
-    time with no loss of pose accuracy)."""
+    4 px bound then rejects good matches and draws more samples (matching CPU time and
+    pose accuracy: ``gaslight2usd bench --suite poses --megapixels 12``)."""
     extraction_threads: int = -1
     """Threads of the feature extraction (-1: every core). With 12 MP photos decoding and
     SIFT are most of the SfM's time. Threaded extraction writes the photos' features in

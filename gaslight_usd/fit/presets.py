@@ -134,12 +134,11 @@ SFM_OPTIONS: dict[str, dict[str, int]] = {
     "best": {"max_image_size": 1600, "max_features": 8192},
 }
 """SfM feature size (long side, pixels) and most SIFT features per photo that ``run``
-uses with each preset. Matching grows with the square of the features' count; a 12 MP
-photo shrunk to 640 px keeps the example's pose accuracy as shot at 480 x 360 (at 1024
-and 1600 one camera of 24 went astray), and 1024 features there are about the 480 x 360
-photos' own count. The enlarged example has no detail finer than 480 x 360, so ``best``
-keeps COLMAP's usual 1600 for real photos' detail. Measured with ``gaslight2usd bench
---suite poses --megapixels 12``."""
+uses with each preset. Matching grows with the square of the features' count. On the
+example enlarged to 12 MP, 640 px keeps the pose accuracy of the photos as shot while
+larger sizes lost a camera, and ``fast``'s count is about what the photos as shot have;
+``best`` keeps COLMAP's usual 1600 for real photos' finer detail. Measured with
+``gaslight2usd bench --suite poses --megapixels 12`` (docs/measurements.md)."""
 
 
 def sfm_options(name: str) -> dict[str, int]:
