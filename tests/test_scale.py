@@ -177,3 +177,21 @@ def test_the_scale_bench_cases_and_sizes():
     assert cases({"quick": True}) == [(12, 0.2), (12, 3.0)]
     assert cases({"photos": (12, 96), "megapixels": (12.0,)}) == [(12, 12.0), (96, 12.0)]
     assert len(cases({})) == 6
+
+
+def test_the_poses_bench_solves_enlarged_photos_at_each_feature_size(tmp_path, monkeypatch):
+    from gaslight_usd.bench import suite_poses
+
+    calls = []
+
+    def fake(photos, truth, matcher, model, seed=0, scene_size=None, **sfm):
+        calls.append((len(photos), photos[0].parent.name, sfm.get("max_image_size")))
+        return {"setting": f"{matcher}/{model}", "photos": len(photos)}
+
+    monkeypatch.setattr(suite_poses, "solve_and_score", fake)
+    rows = suite_poses.run({"megapixels": [0.2], "out": tmp_path})
+    assert calls[0] == (24, "photos", None)  # the photos as shot, COLMAP's own size
+    assert calls[1:] == [(24, "480x360", s) for s in suite_poses.EXTRACTION_SIZES]
+    assert [r["max_image_size"] for r in rows] == [0, *suite_poses.EXTRACTION_SIZES]
+    assert rows[0]["setting"] == "480x360 as shot"
+    assert rows[1]["setting"] == "480x360, features at 640" and rows[1]["megapixels"] == 0.17
