@@ -237,7 +237,9 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             clock.lap("extract")
             progress.message(f"matching ({opts.matcher})")
             matching = pycolmap.FeatureMatchingOptions(num_threads=opts.matching_threads)
-            longest = max(max(sizes.values(), key=max))
+            # the largest image COLMAP sees: a photo, or a panorama's cube face
+            longest = max([max(sizes[p]) for p in plain] +
+                          [max(sizes[p][0] // 4, 64) for p in panos])
             shrink = longest / opts.max_image_size if opts.max_image_size > 0 else 1.0
             verification = _verification_options(
                 opts.seed, max(shrink, 1.0) if opts.scale_verify_error else 1.0)
