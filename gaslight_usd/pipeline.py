@@ -3,7 +3,8 @@
 Options are grouped by step name (``uplift``, ``poses``, ``fit``, ``export``,
 ``hdri``) and passed to whichever converter runs that step. Unless the job
 says otherwise (``uplift.max_size``; 0 keeps the photos' size), photos are
-uplifted at the fit preset's working size (:func:`..fit.presets.uplift_size`):
+uplifted at the fit preset's working size (:func:`..fit.presets.uplift_size`) and
+SfM features are extracted at the preset's size (:func:`..fit.presets.sfm_options`):
 work and memory then follow the preset, not the camera's megapixels.
 """
 
@@ -49,14 +50,20 @@ def artifacts_from_paths(paths: list[Path]) -> list[Artifact]:
 
 
 def with_working_size(options: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
-    """``options`` with ``uplift.max_size`` set from the fit preset when not given."""
-    from .fit.presets import PRESETS, uplift_size
+    """``options`` with ``uplift.max_size`` and the SfM's feature size and count
+    (``poses.max_image_size``, ``poses.max_features``) set from the fit preset when not
+    given."""
+    from .fit.presets import PRESETS, sfm_options, uplift_size
 
     out = {step: dict(opts) for step, opts in options.items()}
+    name = out.get("fit", {}).get("preset") or "fast"
     uplift = out.setdefault("uplift", {})
     if uplift.get("max_size") is None:
-        name = out.get("fit", {}).get("preset") or "fast"
         uplift["max_size"] = uplift_size(PRESETS[name]) if name in PRESETS else 0
+    poses = out.setdefault("poses", {})
+    for key, value in sfm_options(name).items():
+        if poses.get(key) is None:
+            poses[key] = value
     return out
 
 

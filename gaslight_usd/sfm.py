@@ -64,8 +64,20 @@ class SfmOptions:
     """"auto": 2:1 photos are lat-long panoramas; "on": all are; "off": none."""
     seed: int = 0
     threads: int = 1
-    """COLMAP threads. 1 keeps the result the same from run to run (threaded matching
-    and mapping order their work by timing); -1 uses every core, faster on big sets."""
+    """Threads of the mapping (and of the triangulation with known poses). 1 keeps the
+    result the same from run to run (threaded bundle adjustment sums in the order its
+    threads finish); -1 uses every core."""
+    matching_threads: int = -1
+    """Threads of the feature matching and its geometric verification (-1: every core).
+    Each pair's RANSAC is seeded by ``seed``, so the verified pairs do not depend on the
+    threads' timing (three solves of the example with 2 matching threads and one
+    extraction thread gave identical poses and points)."""
+    scale_verify_error: bool = True
+    """Scale the geometric verification's RANSAC error (COLMAP's 4 px, meant for features
+    found at the photo's own size) by how much the photos were shrunk for features: a
+    12 MP photo's features found at 640 px are 6 px apart in its own pixels, and a
+    4 px bound then rejects good matches and draws more samples (matching CPU time and
+    pose accuracy: ``gaslight2usd bench --suite poses --megapixels 12``)."""
     extraction_threads: int = -1
     """Threads of the feature extraction (-1: every core). With 12 MP photos decoding and
     SIFT are most of the SfM's time. Threaded extraction writes the photos' features in
@@ -85,6 +97,21 @@ class SfmResult:
     seconds: float
     stats: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+
+
+class _PhaseClock:
+    """Wall and CPU seconds (all threads) of each SfM phase: on a shared machine the CPU
+    seconds still compare settings when the wall seconds do not."""
+
+    def __init__(self, wall0: float) -> None:
+        self.wall, self.cpu = wall0, time.process_time()
+        self.seconds: dict[str, float] = {}
+
+    def lap(self, name: str) -> None:
+        wall, cpu = time.perf_counter(), time.process_time()
+        self.seconds[f"{name}_s"] = round(wall - self.wall, 3)
+        self.seconds[f"{name}_cpu_s"] = round(cpu - self.cpu, 3)
+        self.wall, self.cpu = wall, cpu
 
 
 @contextlib.contextmanager
@@ -155,11 +182,13 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
     if len(paths) < 2:
         raise InputError("SfM needs at least 2 photos", paths[0] if paths else photos)
     t0 = time.perf_counter()
+    clock = _PhaseClock(t0)
     work = Path(tempfile.mkdtemp(prefix="gaslight-sfm-"))
     try:
         images = work / "images"
         images.mkdir()
         names, owners, sizes = _stage_photos(paths, images, opts)
+        clock.lap("stage")
         db_path = work / "database.db"
         pycolmap.set_random_seed(opts.seed)
         with colmap_logging(opts.verbose):
@@ -205,14 +234,24 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
                                           extraction_options=extraction,
                                           device=pycolmap.Device.cpu)
                 constant_cameras = _apply_panorama_rig(db_path, set(face_names))
+            clock.lap("extract")
             progress.message(f"matching ({opts.matcher})")
-            matching = pycolmap.FeatureMatchingOptions(num_threads=opts.threads)
+            matching = pycolmap.FeatureMatchingOptions(num_threads=opts.matching_threads)
+            # the largest image COLMAP sees: a photo, or a panorama's cube face
+            longest = max([max(sizes[p]) for p in plain] +
+                          [max(sizes[p][0] // 4, 64) for p in panos])
+            shrink = longest / opts.max_image_size if opts.max_image_size > 0 else 1.0
+            verification = _verification_options(
+                opts.seed, max(shrink, 1.0) if opts.scale_verify_error else 1.0)
             if opts.matcher == "exhaustive":
                 pycolmap.match_exhaustive(db_path, matching_options=matching,
+                                          verification_options=verification,
                                           device=pycolmap.Device.cpu)
             else:
                 pycolmap.match_sequential(db_path, matching_options=matching,
+                                          verification_options=verification,
                                           device=pycolmap.Device.cpu)
+            clock.lap("match")
             mapping = pycolmap.IncrementalPipelineOptions(
                 num_threads=opts.threads, random_seed=opts.seed, min_model_size=3)
             mapping.mapper.init_min_num_inliers = opts.init_min_inliers
@@ -231,6 +270,7 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
             recs = pycolmap.incremental_mapping(db_path, images, work / "sparse",
                                                 options=mapping,
                                                 next_image_callback=next_image)
+            clock.lap("map")
             model_names = _reconstruction_names(recs)
             best = max(recs, key=lambda k: recs[k].num_reg_images()) if recs else None
             stats, reasons = _diagnose(db_path, names, model_names, best)
@@ -253,9 +293,22 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
     result = SfmResult(model=model, photos=list(owners), registered=registered,
                        unregistered=unregistered, seconds=time.perf_counter() - t0,
                        stats={**stats, "reconstructions": len(recs),
-                              "points": len(model.points)}, warnings=warnings)
+                              "points": len(model.points),
+                              **clock.seconds},
+                       warnings=warnings)
     _judge(result, opts, paths[0].parent)
     return result
+
+
+def _verification_options(seed: int, error_scale: float = 1.0) -> Any:
+    """Geometric verification whose RANSAC is seeded (COLMAP's default, -1, seeds each
+    matching thread from the clock, so verified pairs could differ from run to run);
+    its inlier error times ``error_scale``."""
+    import pycolmap
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = seed
+    verification.ransac.max_error *= error_scale
+    return verification
 
 
 def _exif_focal_prior(paths: list[Path], sizes: dict[str, tuple[int, int]]
@@ -426,7 +479,9 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
             progress.message("matching (exhaustive)")
             pycolmap.match_exhaustive(
                 db_path, matching_options=pycolmap.FeatureMatchingOptions(
-                    num_threads=opts.threads), device=pycolmap.Device.cpu)
+                    num_threads=opts.matching_threads),
+                verification_options=_verification_options(opts.seed),
+                device=pycolmap.Device.cpu)
             # The reconstruction must use the database's image, camera (and so rig
             # and frame) ids: write the given poses under those ids.
             db = pycolmap.Database.open(db_path)

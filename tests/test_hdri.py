@@ -53,6 +53,19 @@ def test_latlong_follows_openexr_convention(tmp_path):
     np.testing.assert_allclose(back.pixels, pano, rtol=1e-3, atol=1e-3)  # half precision
 
 
+def test_latlong_drawn_in_another_frames_axes():
+    # the beacons solved in a frame of their own, turned 90 degrees about +Y (an SfM
+    # frame): drawn with the rotation back, the panorama is the true frame's
+    turn = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])  # x_true = turn @ x_own
+    true = beacons()
+    own = SplatScene.from_activated(true.positions @ turn, np.array(
+        [[8.0, 0, 0], [0, 8.0, 0], [0, 0, 8.0]]), np.full((3, 3), 0.15), np.full(3, 0.99))
+    want = render_latlong(true, (0, 0, 0), 64)
+    np.testing.assert_allclose(render_latlong(own, (0, 0, 0), 64, rotation=turn), want,
+                               atol=1e-4)
+    assert not np.allclose(render_latlong(own, (0, 0, 0), 64), want, atol=1e-2)
+
+
 def test_cube_layout_faces_and_radiance_unclamped(tmp_path):
     scene = beacons()
     scene.sh[0, 0] *= 20000  # red beacon far above the half range (65504)

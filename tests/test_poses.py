@@ -58,6 +58,13 @@ def ring_model(seed: int = 0) -> ColmapModel:
     return transform_model(model, 0.37, rot, rng.normal(size=3))
 
 
+def test_threaded_matching_verifies_pairs_with_a_seeded_ransac():
+    from gaslight_usd.sfm import _verification_options
+
+    assert SfmOptions().matching_threads == -1 and SfmOptions().threads == 1
+    assert _verification_options(7).ransac.random_seed == 7  # COLMAP's -1: from the clock
+
+
 def test_umeyama_recovers_a_similarity():
     rng = np.random.default_rng(1)
     src = rng.normal(size=(20, 3))

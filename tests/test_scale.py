@@ -112,7 +112,7 @@ def _posed_set(root: Path, photos: list[Path], width: int, height: int) -> Path:
 def _peak_of_run(photos: Path, sparse: Path, out: Path) -> tuple[float, dict]:
     cmd = [sys.executable, "-P", "-c", RUN_MAIN, "run", str(photos), "--poses", str(sparse),
            "-o", str(out), "--to", "splats", "--preset", "fast", "--budget", "2000", "-q"]
-    code, _, peak = run_measured(cmd, out.with_suffix(".log"))
+    code, _, peak, _ = run_measured(cmd, out.with_suffix(".log"))
     assert code == 0, out.with_suffix(".log").read_text()[-2000:]
     return peak, json.loads((out / "report.json").read_text())
 
@@ -147,12 +147,25 @@ def test_run_uplifts_at_the_presets_uplift_size_unless_told_to_keep_full_size():
     assert kept["uplift"]["max_size"] == 0  # --keep-hdr full
 
 
+def test_run_extracts_sfm_features_at_the_presets_size_unless_told():
+    from gaslight_usd.pipeline import with_working_size
+
+    assert with_working_size({})["poses"] == {"max_image_size": 640,  # fast by default
+                                              "max_features": 1024}
+    best = with_working_size({"fit": {"preset": "best"}})["poses"]
+    assert best == {"max_image_size": 1600, "max_features": 8192}
+    given = with_working_size({"poses": {"max_image_size": 2000, "scale": 2.0}})["poses"]
+    assert given == {"max_image_size": 2000, "max_features": 1024, "scale": 2.0}
+
+
 def test_the_scale_bench_measures_a_childs_peak_memory(tmp_path):
     grab = "import numpy as np; a = np.ones(400 * 2**20 // 8); a += 1"  # 400 MiB touched
-    code, seconds, peak = run_measured([sys.executable, "-c", grab], tmp_path / "log")
-    assert code == 0 and seconds > 0
+    code, seconds, peak, cpu = run_measured([sys.executable, "-c", grab], tmp_path / "log")
+    assert code == 0 and seconds > 0 and 0 < cpu < 60
     assert 400 / 1024 < peak < 400 / 1024 + 0.3
-    code, _, _ = run_measured([sys.executable, "-c", "raise SystemExit(3)"], tmp_path / "log")
+    spin = "import time; t = time.process_time()\nwhile time.process_time() - t < 1.0: pass"
+    assert 1.0 <= run_measured([sys.executable, "-c", spin], tmp_path / "log").cpu_seconds < 3
+    code = run_measured([sys.executable, "-c", "raise SystemExit(3)"], tmp_path / "log").code
     assert code == 3
 
 
@@ -164,3 +177,21 @@ def test_the_scale_bench_cases_and_sizes():
     assert cases({"quick": True}) == [(12, 0.2), (12, 3.0)]
     assert cases({"photos": (12, 96), "megapixels": (12.0,)}) == [(12, 12.0), (96, 12.0)]
     assert len(cases({})) == 6
+
+
+def test_the_poses_bench_solves_enlarged_photos_at_each_feature_size(tmp_path, monkeypatch):
+    from gaslight_usd.bench import suite_poses
+
+    calls = []
+
+    def fake(photos, truth, matcher, model, seed=0, scene_size=None, **sfm):
+        calls.append((len(photos), photos[0].parent.name, sfm.get("max_image_size")))
+        return {"setting": f"{matcher}/{model}", "photos": len(photos)}
+
+    monkeypatch.setattr(suite_poses, "solve_and_score", fake)
+    rows = suite_poses.run({"megapixels": [0.2], "out": tmp_path})
+    assert calls[0] == (24, "photos", None)  # the photos as shot, COLMAP's own size
+    assert calls[1:] == [(24, "480x360", s) for s in suite_poses.EXTRACTION_SIZES]
+    assert [r["max_image_size"] for r in rows] == [0, *suite_poses.EXTRACTION_SIZES]
+    assert rows[0]["setting"] == "480x360 as shot"
+    assert rows[1]["setting"] == "480x360, features at 640" and rows[1]["megapixels"] == 0.17

@@ -6,7 +6,11 @@ centres onto the true ones. Errors: median rotation error (degrees) and
 median centre error as a share of the scene size (the diagonal of the room's
 bounding box from scene.json). Quick mode solves the 14 photos once (a subset
 leaves too little overlap to register); the full run tries several matcher /
-camera-model settings.
+camera-model settings. With ``--megapixels`` (e.g. 12) the photos are also
+enlarged to that size (pixels replicated, EXIF kept: :mod:`.suite_scale`) and
+solved with features extracted at each of :data:`EXTRACTION_SIZES`, beside the
+photos as shot: the measurement behind the presets' SfM sizes
+(:data:`gaslight_usd.fit.presets.SFM_IMAGE_SIZES`).
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ EXAMPLE = example_room()
 FULL_SETTINGS = [("exhaustive", "SIMPLE_RADIAL"), ("exhaustive", "PINHOLE"),
                  ("sequential", "SIMPLE_RADIAL")]
 QUICK_SETTINGS = [("exhaustive", "PINHOLE")]
+EXTRACTION_SIZES = (640, 1024, 1600)
+"""Long sides (pixels) the enlarged photos' features are extracted at."""
 
 
 def _scene_size(example: Path) -> float:
@@ -43,8 +49,10 @@ def _scene_size(example: Path) -> float:
 
 
 def solve_and_score(photos: list[Path], truth_dir: Path, matcher: str, camera_model: str,
-                    seed: int = 0, scene_size: float | None = None) -> dict[str, Any]:
-    """One SfM solve of ``photos``, scored against the true model in ``truth_dir``."""
+                    seed: int = 0, scene_size: float | None = None, **sfm: Any
+                    ) -> dict[str, Any]:
+    """One SfM solve of ``photos``, scored against the true model in ``truth_dir``;
+    ``sfm``: further :class:`SfmOptions` (e.g. ``max_image_size``)."""
     truth = read_poses(truth_dir)
     keep = {p.name for p in photos}
     truth.cameras = [c for c in truth.cameras if c.name in keep]
@@ -55,7 +63,7 @@ def solve_and_score(photos: list[Path], truth_dir: Path, matcher: str, camera_mo
     t0 = time.perf_counter()
     try:
         result = solve_poses(photos, SfmOptions(matcher=matcher, camera_model=camera_model,
-                                                seed=seed, min_registered=0.0))
+                                                seed=seed, min_registered=0.0, **sfm))
         cmp = align_and_compare(sfm_frame(result.model), truth, scene_size=scene_size)
     except InputError as exc:  # too few registered to align: a failed row, not a crash
         return {**row, "registered": 0, "seconds": round(time.perf_counter() - t0, 3),
@@ -72,6 +80,8 @@ def solve_and_score(photos: list[Path], truth_dir: Path, matcher: str, camera_mo
         "max_centre_error_rel": cmp["max_centre_error_rel"],
         "median_centre_error_m": cmp["median_centre_error"],
         "scene_size_m": cmp["scene_size"],
+        **{k: v for k, v in result.stats.items()
+           if k.endswith("_s") or k == "keypoints_median"},
     }
 
 
@@ -83,6 +93,32 @@ def run(options: dict) -> list[dict]:
     photos = list_images(example / "photos", LDR_EXTENSIONS)
     quick = bool(options.get("quick"))
     size = _scene_size(example)
+    seed = int(options.get("seed", 0))
+    if options.get("megapixels"):
+        return size_rows(example, photos, options["megapixels"],
+                         Path(options.get("out") or ".") / "photos", seed, size)
     return [solve_and_score(photos, example / "sparse" / "0", matcher, model,
-                            seed=int(options.get("seed", 0)), scene_size=size)
+                            seed=seed, scene_size=size)
             for matcher, model in (QUICK_SETTINGS if quick else FULL_SETTINGS)]
+
+
+def size_rows(example: Path, photos: list[Path], megapixels: list[float], store: Path,
+              seed: int, scene_size: float) -> list[dict[str, Any]]:
+    """The photos as shot, then enlarged to each size and solved at each extraction size
+    (exhaustive matching, SIMPLE_RADIAL: what ``run`` uses)."""
+    from .suite_scale import photo_size, upscale_photos
+
+    truth = example / "sparse" / "0"
+    rows = [{**solve_and_score(photos, truth, "exhaustive", "SIMPLE_RADIAL", seed=seed,
+                               scene_size=scene_size), "megapixels": 0.17,
+             "max_image_size": 0}]
+    for mp in megapixels:
+        w, h = photo_size(mp)
+        big = upscale_photos(example / "photos", store / f"{w}x{h}", w, h)
+        for extract in EXTRACTION_SIZES:
+            row = solve_and_score(big, truth, "exhaustive", "SIMPLE_RADIAL", seed=seed,
+                                  scene_size=scene_size, max_image_size=extract)
+            rows.append({**row, "setting": f"{w}x{h}, features at {extract}",
+                         "megapixels": round(w * h / 1e6, 2), "max_image_size": extract})
+    rows[0]["setting"] = "480x360 as shot"
+    return rows

@@ -13,9 +13,11 @@ photos, the scene does not (re-rendering 96 views takes too long for a bench).
 
 Default cases: 24 photos at 0.2 / 3 / 12 MP and 12 / 48 / 96 photos at 12 MP
 (fast preset); ``--photos`` and ``--megapixels`` give the grid, ``--preset``
-the presets; quick: 12 photos at 0.2 and 3 MP. Besides the runner's chart
-(wall seconds against peak memory) it draws ``scale_curves.png``: seconds and
-peak memory against the set's total megapixels, a line per photo size.
+the presets; quick: 12 photos at 0.2 and 3 MP. Each run's splats are scored at the
+example's probes (:func:`probe_accuracy`), so a faster run that lost accuracy shows.
+Besides the runner's chart (wall seconds against peak memory) it draws
+``scale_curves.png``: seconds and peak memory against the set's total megapixels, a
+line per photo size.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..atomic import atomic_path
 from ..errors import GaslightError
@@ -39,8 +41,8 @@ DESCRIPTION = "whole chain on upscaled photos: seconds and peak memory vs photo 
 X = ("seconds", "wall seconds (whole chain)")
 Y = ("peak_rss_gb", "peak memory (GB, largest resident set)")
 HIGHER_IS_BETTER = False
-TABLE = ("photos", "megapixels", "seconds", "peak_rss_gb", "uplift_s", "poses_s", "fit_s",
-         "export_s", "hdri_s", "splats")
+TABLE = ("photos", "megapixels", "seconds", "cpu_s", "peak_rss_gb", "uplift_s", "poses_s", "fit_s",
+         "export_s", "hdri_s", "splats", "probe_pu21_psnr_aligned", "median_rotation_error_deg")
 EXAMPLE = example_room()
 STAGES = ("uplift", "poses", "fit", "export", "hdri")
 DEFAULT_CASES = ((24, 0.2), (24, 3.0), (24, 12.0), (12, 12.0), (48, 12.0), (96, 12.0))
@@ -111,13 +113,24 @@ def photo_set(photos: list[Path], folder: Path, count: int) -> Path:
 # is forked from a small interpreter, so its peak is its own.
 _LAUNCH = ("import os, subprocess, sys; p = subprocess.Popen(sys.argv[2:]); "
            "_, status, usage = os.wait4(p.pid, 0); "
-           "open(sys.argv[1], 'w').write(str(usage.ru_maxrss)); "
+           "open(sys.argv[1], 'w').write(f'{usage.ru_maxrss} "
+           "{usage.ru_utime + usage.ru_stime}'); "
            "sys.exit(os.waitstatus_to_exitcode(status))")
 
 
-def run_measured(command: list[str], log: Path) -> tuple[int, float, float]:
-    """Run ``command``; (exit status, wall seconds, peak resident set in GB of it and its
-    waited-for children, from ``os.wait4`` in a small launcher process)."""
+class Measured(NamedTuple):
+    code: int
+    seconds: float
+    """Wall seconds."""
+    peak_gb: float
+    """Peak resident set (GiB) of the command and its waited-for children."""
+    cpu_seconds: float
+    """User + system CPU seconds of all their threads: on a machine shared with other
+    work it still compares runs when wall seconds do not."""
+
+
+def run_measured(command: list[str], log: Path) -> Measured:
+    """Run ``command`` through a small launcher process that reads its ``os.wait4``."""
     peak_file = log.with_name(log.name + ".peak")
     peak_file.unlink(missing_ok=True)
     t0 = time.perf_counter()
@@ -125,9 +138,10 @@ def run_measured(command: list[str], log: Path) -> tuple[int, float, float]:
         code = subprocess.run([sys.executable, "-P", "-c", _LAUNCH, str(peak_file), *command],
                               stdout=out, stderr=subprocess.STDOUT).returncode
     seconds = time.perf_counter() - t0
-    peak_kib = float(peak_file.read_text()) if peak_file.is_file() else 0.0
+    peak_kib, cpu = (map(float, peak_file.read_text().split()) if peak_file.is_file()
+                     else (0.0, 0.0))
     peak_file.unlink(missing_ok=True)
-    return code, seconds, peak_kib / 1024 ** 2  # KiB -> GiB
+    return Measured(code, seconds, peak_kib / 1024 ** 2, cpu)  # KiB -> GiB
 
 
 def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
@@ -135,9 +149,9 @@ def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
     """One whole-chain run of ``photos`` into ``out``: seconds per stage, peak memory."""
     cmd = [sys.executable, "-P", "-c", RUN_MAIN, "run", str(photos), "-o", str(out), "--preset",
            preset, "--fresh", "-q", *extra]
-    code, wall, peak = run_measured(cmd, out.with_suffix(".log"))
-    row: dict[str, Any] = {"seconds": round(wall, 2), "peak_rss_gb": round(peak, 3),
-                           "exit_code": code}
+    code, wall, peak, cpu = run_measured(cmd, out.with_suffix(".log"))
+    row: dict[str, Any] = {"seconds": round(wall, 2), "cpu_s": round(cpu, 1),
+                           "peak_rss_gb": round(peak, 3), "exit_code": code}
     report = out / "report.json"
     if report.exists():
         stages = json.loads(report.read_text())["stages"]
@@ -148,6 +162,37 @@ def run_case(photos: Path, out: Path, preset: str, extra: tuple[str, ...] = ()
     if code != 0:
         row["error"] = out.with_suffix(".log").read_text(errors="replace")[-400:]
     return row
+
+
+def probe_accuracy(out: Path, example: Path = EXAMPLE) -> dict[str, float]:
+    """The run's splats scored at the example's probes, as the fit suite scores them.
+
+    The run solved its own poses (SfM frame, unknown scale): its cameras are
+    similarity-aligned onto the true ones by name, and each probe is drawn from the
+    true probe point mapped into the run's frame with the true frame's axes.
+    Medians over the probes (:func:`.suite_fit.probe_scores`, no relight).
+    """
+    import numpy as np
+
+    from ..frame import align_and_compare, split_similarity
+    from ..imageio import read_image
+    from ..ply import read_ply
+    from ..poses import read_poses
+    from ..render.envmap import PROBE_NEAR, render_latlong
+    from .suite_fit import probe_scores
+
+    cmp = align_and_compare(read_poses(out / "sparse"), read_poses(example / "sparse" / "0"))
+    s, rot, t = split_similarity(cmp["similarity"])  # x_true = s * rot @ x_run + t
+    scene = read_ply(out / "splats.ply")
+    info = json.loads((example / "probes" / "probes.json").read_text())
+    truths = [read_image(example / "probes" / p["name"]).pixels for p in info["probes"]]
+    panos = [render_latlong(scene, rot.T @ (np.asarray(p["position"], np.float64) - t) / s,
+                            truth.shape[1], near=PROBE_NEAR / s, rotation=rot)
+             for p, truth in zip(info["probes"], truths, strict=True)]
+    scores = probe_scores(panos, truths, relight=False)
+    return {"probe_pu21_psnr_aligned": round(scores["probe_pu21_psnr_aligned"], 3),
+            "probe_log_lum_rmse": round(scores["probe_log_lum_rmse"], 4),
+            "median_rotation_error_deg": round(cmp["median_rotation_error_deg"], 4)}
 
 
 def cases(options: dict[str, Any]) -> list[tuple[int, float]]:
@@ -174,6 +219,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
             if progress is not None:
                 progress.message(f"{preset}: {count} photos of {w}x{h}")
             row = run_case(folder, out / f"{preset}-{count}x{w}x{h}", preset)
+            if row["exit_code"] == 0:
+                row.update(probe_accuracy(out / f"{preset}-{count}x{w}x{h}"))
             rows.append({"method": preset, "setting": f"{count} x {w * h / 1e6:.1f} MP",
                          "photos": count, "megapixels": round(w * h / 1e6, 2),
                          "width": w, "height": h, **row})

@@ -128,6 +128,24 @@ def uplift_size(config: FitConfig) -> int:
     return max(config.working_size, UPLIFT_MIN_SIZE)
 
 
+SFM_OPTIONS: dict[str, dict[str, int]] = {
+    "fast": {"max_image_size": 640, "max_features": 1024},
+    "balanced": {"max_image_size": 640, "max_features": 8192},
+    "best": {"max_image_size": 1600, "max_features": 8192},
+}
+"""SfM feature size (long side, pixels) and most SIFT features per photo that ``run``
+uses with each preset. Matching grows with the square of the features' count. On the
+example enlarged to 12 MP, 640 px keeps the pose accuracy of the photos as shot while
+larger sizes lost a camera, and ``fast``'s count is about what the photos as shot have;
+``best`` keeps COLMAP's usual 1600 for real photos' finer detail. Measured with
+``gaslight2usd bench --suite poses --megapixels 12`` (docs/measurements.md)."""
+
+
+def sfm_options(name: str) -> dict[str, int]:
+    """The SfM options ``run`` uses with preset ``name`` (``best``'s for an unknown one)."""
+    return dict(SFM_OPTIONS.get(name, SFM_OPTIONS["best"]))
+
+
 def preset(name: str) -> FitConfig:
     if name not in PRESETS:
         raise KeyError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")

@@ -89,7 +89,8 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
             # after them) would change from run to run; the fit must be deterministic
             # for a seed. The views are at the working size, so one thread is cheap.
             filled = triangulate_known_poses(work, model,
-                                             SfmOptions(threads=1, extraction_threads=1),
+                                             SfmOptions(threads=1, extraction_threads=1,
+                                                        matching_threads=1),
                                              progress=progress)
         except (GaslightError, RuntimeError, ValueError) as err:
             progress.message(f"triangulation failed ({err}); starting without points")

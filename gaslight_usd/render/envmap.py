@@ -168,10 +168,13 @@ def latlong_supersample(width: int) -> int:
 
 def render_latlong(scene: SplatScene | SplatParams, position, width: int,
                    device: str = "cpu", near: float = PROBE_NEAR,
-                   supersample: int | None = None) -> np.ndarray:
+                   supersample: int | None = None, rotation: np.ndarray | None = None
+                   ) -> np.ndarray:
     """Lat-long panorama (width // 2, width, 3) float32 linear HDR from ``position``.
 
     ``supersample``: sub-pixels per axis (default :func:`latlong_supersample`).
+    ``rotation``: the panorama's axes are those of a frame ``rotation`` @ x of the
+    scene's (e.g. the true world of a scene solved by SfM in a frame of its own).
     """
     s = latlong_supersample(width) if supersample is None else max(1, int(supersample))
     if width % 2:
@@ -183,7 +186,8 @@ def render_latlong(scene: SplatScene | SplatParams, position, width: int,
     out = np.zeros((fine // 2 * fine, 3), np.float32)
     with torch.no_grad():
         for cam, (idx, x, y, w) in zip(cams, feeds, strict=True):
-            placed = replace(cam, t=-np.asarray(cam.R) @ pos)
+            rot = np.asarray(cam.R) if rotation is None else np.asarray(cam.R) @ rotation
+            placed = replace(cam, R=rot, t=-rot @ pos)
             image = render(params, placed, background=0.0, near=near).image.cpu().numpy()
             out[idx] += w * _bilinear(image, x, y, wrap_x=False)
     out = out.reshape(fine // 2, fine, 3)
