@@ -173,3 +173,8 @@ def test_light_seeds_take_the_colour_a_view_measured_not_the_clipped_guesses():
     _, own = bright_points(cams, images, 27, np.random.default_rng(0))
     _, cols = bright_points(cams, images, 27, np.random.default_rng(0), floors=floors)
     assert (own[:, 0] == 40.0).sum() == 18 and (cols[:, 0] == 500.0).sum() > 9
+    # a seed whose own pixel was measured keeps it: true HDR views change nothing
+    _, cams, images, floors = _lamp_views([450.0, 480.0, 500.0], [False, False, False])
+    _, own = bright_points(cams, images, 27, np.random.default_rng(0))
+    _, cols = bright_points(cams, images, 27, np.random.default_rng(0), floors=floors)
+    np.testing.assert_array_equal(cols, own)

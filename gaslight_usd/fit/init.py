@@ -106,8 +106,10 @@ def plane_sweep_points(cameras: list[PinholeCamera], images: list[np.ndarray], c
 
 
 def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[PinholeCamera],
-                     images: list[np.ndarray], floors: list[np.ndarray | None]) -> np.ndarray:
-    """``colours``, raised to the brightest *measured* sample of each point in any view.
+                     images: list[np.ndarray], floors: list[np.ndarray | None],
+                     guessed: np.ndarray | None = None) -> np.ndarray:
+    """``colours`` of the ``guessed`` points (default: all), raised to the brightest
+    *measured* sample of each point in any view.
 
     A light's seed takes the colour of the pixel it was swept from, and most of its
     pixels come from photos where it clipped: the uplift's fill there is a guess,
@@ -115,9 +117,11 @@ def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[Pinh
     a lower auto-exposure; its clip floor is 0 there) knows better, and a short fit
     (``fast``: a few dozen steps on that one view) cannot climb the stops from the
     guess. The brightest such sample wins (occluders only make samples darker);
-    a point no view measured keeps its colour.
+    a point no view measured, or one whose own pixel was measured, keeps its colour.
     """
     best = np.asarray(colours, np.float32).copy()
+    if guessed is not None and not guessed.any():
+        return best
     best_y = best @ LUMA
     for cam, image, floor in zip(cameras, images, floors, strict=True):
         uv, z = cam.project(points)
@@ -128,6 +132,8 @@ def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[Pinh
             inside &= _sample(floor[..., None], uv)[:, 0] <= 0
         y = sample @ LUMA
         take = inside & (y > best_y)
+        if guessed is not None:
+            take &= guessed
         best[take], best_y[take] = sample[take], y[take]
     return best
 
@@ -141,8 +147,9 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
     Lamps and windows have no features to triangulate and sit off the
     surfaces the sparse points describe, yet they light the scene; their own
     brightness makes their depth easy to find by photo-consistency. With the
-    views' clip ``floors``, each point's colour is its brightest measured sample
-    (:func:`measured_colours`); without them every pixel counts as measured.
+    views' clip ``floors``, a point swept from a clipped pixel takes its brightest
+    measured sample (:func:`measured_colours`); without them every pixel counts as
+    measured and keeps its own colour.
     """
     lum = [im @ LUMA for im in images]
     level = ratio * float(np.median(np.concatenate([y[::4, ::4].ravel() for y in lum])))
@@ -151,7 +158,7 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
     if not total or count <= 0:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
     depths = _sweep_range(cameras, depth_steps)
-    pts, cols = [], []
+    pts, cols, clipped = [], [], []
     for v, yx in enumerate(where):
         n = min(len(yx), int(round(count * len(yx) / total)))
         if not n:
@@ -160,11 +167,14 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
         px = pick[:, ::-1] + rng.uniform(0, 1, (n, 2))
         pts.append(_sweep_depths(v, px, cameras, images, depths, rng))
         cols.append(_sample(images[v], px))
+        floor = floors[v] if floors is not None else None
+        clipped.append(np.zeros(n, bool) if floor is None else _sample(floor[..., None],
+                                                                       px)[:, 0] > 0)
     if not pts:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
     pts, cols = np.concatenate(pts), np.concatenate(cols).astype(np.float32)
     if floors is not None:
-        cols = measured_colours(pts, cols, cameras, images, floors)
+        cols = measured_colours(pts, cols, cameras, images, floors, np.concatenate(clipped))
     return pts, cols
 
 
