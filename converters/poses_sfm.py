@@ -7,7 +7,7 @@ Options (the ``poses`` step's options in a chain run; all optional):
 ``camera_height`` (the photos' median height above the floor, metres),
 ``binary`` (write .bin instead of .txt), ``max_image_size``, ``verbose``.
 The model is moved to the project's SfM frame (+Y up, the floor at y = 0, origin
-under the cameras; see gaslight_usd.frame) and written with its ``frame.json``.
+under the cameras; see gaslight_usd.poses.frame) and written with its ``frame.json``.
 """
 
 from __future__ import annotations
@@ -15,11 +15,11 @@ from __future__ import annotations
 from dataclasses import fields
 
 from gaslight_usd.chain import StageContext, StageResult
-from gaslight_usd.colmap import write_model
-from gaslight_usd.frame import sfm_frame
 from gaslight_usd.kinds import Kind
+from gaslight_usd.poses.colmap import write_model
+from gaslight_usd.poses.frame import sfm_frame
+from gaslight_usd.poses.sfm import SfmOptions, solve_poses
 from gaslight_usd.registry import Converter
-from gaslight_usd.sfm import SfmOptions, solve_poses
 
 _SFM_KEYS = {f.name for f in fields(SfmOptions)}
 

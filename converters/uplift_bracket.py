@@ -20,6 +20,7 @@ import numpy as np
 from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import InputError
 from gaslight_usd.kinds import Kind
+from gaslight_usd.poses.views import CLIP_LEVEL, load_views, write_hdr_view
 from gaslight_usd.registry import Converter
 from gaslight_usd.uplift.bracket import (
     check_bracket,
@@ -29,7 +30,6 @@ from gaslight_usd.uplift.bracket import (
     recover_response,
 )
 from gaslight_usd.uplift.pipeline import transform_for, write_stack
-from gaslight_usd.views import CLIP_LEVEL, load_views, write_hdr_view
 
 
 def merge(ctx: StageContext) -> StageResult:

@@ -11,6 +11,7 @@ from __future__ import annotations
 from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
 from gaslight_usd.kinds import Kind
+from gaslight_usd.poses.views import iter_views, write_hdr_view
 from gaslight_usd.registry import Converter
 from gaslight_usd.uplift.pipeline import (
     UpliftOptions,
@@ -18,7 +19,6 @@ from gaslight_usd.uplift.pipeline import (
     transform_for,
     uplift_view,
 )
-from gaslight_usd.views import iter_views, write_hdr_view
 
 
 def uplift(ctx: StageContext) -> StageResult:

@@ -86,8 +86,8 @@ def write_run_pictures(out_dir: Path, artifacts: Mapping, settings: Settings,
     """
     from .errors import GaslightError
     from .imageio import LDR_EXTENSIONS, list_images
+    from .poses.views import hdr_view_paths
     from .preview import latlong_hdris, run_contact_sheet
-    from .views import hdr_view_paths
 
     def files(kind: Kind, lister) -> list[Path]:
         art = artifacts.get(kind)

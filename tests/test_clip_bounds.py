@@ -10,12 +10,12 @@ from conftest import write_jpeg
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel
 from gaslight_usd.colour import luminance_weights
 from gaslight_usd.fit.data import FitData, fit_floor
 from gaslight_usd.fit.losses import bounded_l1
 from gaslight_usd.imageio import read_channel, read_image
-from gaslight_usd.views import CLIP_FLOOR_CHANNEL
+from gaslight_usd.poses.colmap import ColmapModel
+from gaslight_usd.poses.views import CLIP_FLOOR_CHANNEL
 
 Y = torch.tensor([0.2126, 0.7152, 0.0722])
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import EXIT_INTERRUPTED
 from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
+from gaslight_usd.poses.colmap import ColmapModel, write_model
 from gaslight_usd.render import render
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 from ..chain import ChainRun
 from ..errors import InputError
 from ..kinds import Artifact, Kind
+from ..poses.sfm import CAMERA_MODELS, MATCHERS, SfmOptions
 from ..registry import default_registry
-from ..sfm import CAMERA_MODELS, MATCHERS, SfmOptions
 from ._common import add_common, emit, progress_from, settings_from
 
 HELP = "solve camera poses from photos (SfM), or import and convert given poses"
@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
 def _import(args: argparse.Namespace) -> int:
     from ..outputs import check_output
     from ..poses import read_poses, write_poses
-    from ..sfm import triangulate_known_poses
+    from ..poses.sfm import triangulate_known_poses
 
     t0 = time.perf_counter()
     check_output(args.output, folder=args.output.suffix.lower() != ".json")

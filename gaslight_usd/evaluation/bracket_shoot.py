@@ -12,7 +12,7 @@ noise. Single photos of other views can be shot in between.
 
 The truth of a position is ``truth`` in the working space Linear Rec.709;
 an HDR view made from its photos at reference EV ``r`` (relative radiance as
-:mod:`gaslight_usd.views` defines it) should equal ``truth * gain * 2**r``
+:mod:`gaslight_usd.poses.views` defines it) should equal ``truth * gain * 2**r``
 (:meth:`Position.expected`). Nothing derived is committed: tests and the bench
 build shoots in a temporary folder.
 """

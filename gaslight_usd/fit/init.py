@@ -25,8 +25,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
-from ..colmap import ColmapModel
 from ..poses import colour_points
+from ..poses.colmap import ColmapModel
 
 
 def neighbour_scales(points: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ Given poses (a synthetic set, a capture rig, a ``transforms.json``) often come
 without points, and a fit started from guessed depths learns poor geometry.
 The HDR views are tone-mapped to 8-bit (one exposure for all views, so
 matching sees consistent brightness; sRGB encoding) and handed to
-:func:`gaslight_usd.sfm.triangulate_known_poses`, which matches SIFT features
+:func:`gaslight_usd.poses.sfm.triangulate_known_poses`, which matches SIFT features
 and triangulates them with the poses held fixed. No photos are needed.
 """
 
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..colmap import ColmapModel
 from ..errors import GaslightError
 from ..imageio import read_image
+from ..poses.colmap import ColmapModel
 from ..progress import Progress
 
 MID_GREY = 0.18
@@ -65,7 +65,7 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
     """
     import OpenImageIO as oiio
 
-    from ..sfm import SfmOptions, triangulate_known_poses
+    from ..poses.sfm import SfmOptions, triangulate_known_poses
 
     progress = progress or Progress(quiet=True)
     work = Path(tempfile.mkdtemp(prefix="gaslight-fit-tri-"))

@@ -22,7 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
-from ..views import View
+from ..poses.views import View
 from .curves import Curve, lut_curve
 from .grouping import (  # noqa: F401 (re-exported: the bracket API in one place)
     MAX_GAP_S,
@@ -109,7 +109,7 @@ def find_brackets(paths: Sequence[Path], input_space: str, working_space: str,
     ``long_side`` (the similarity compares thumbnails of :data:`THUMB_SIDE` blocks, so
     a 12 MP photo need not stay whole in memory: 8 of them are 1.1 GB as float32).
     """
-    from ..views import load_views
+    from ..poses.views import load_views
 
     photos = [read_photo(Path(p)) for p in paths]
     wanted = sorted(bracket_candidates(photos))

@@ -3,7 +3,7 @@
 Each photo is uplifted in its encoded domain (prediction and merge), linearised
 through the photo's own input transform (see :mod:`.curves`), converted to the
 working space once, and divided by its exposure ratio so every view is on the
-set's relative-radiance scale (as :mod:`gaslight_usd.views` defines it).
+set's relative-radiance scale (as :mod:`gaslight_usd.poses.views` defines it).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import OpenImageIO as oiio
 
 from ..atomic import atomic_path
 from ..errors import InputError
-from ..views import CLIP_LEVEL, View
+from ..poses.views import CLIP_LEVEL, View
 from .curves import InputTransform, input_transform
 from .panorama import is_latlong, uplift_panorama
 from .predictors import Predictor, get_predictor

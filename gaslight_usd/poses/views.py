@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from . import colour
-from .imageio import (
+from .. import colour
+from ..imageio import (
     IMAGE_EXTENSIONS,
     LDR_EXTENSIONS,
     exposure_from_spec,
@@ -33,7 +33,7 @@ from .imageio import (
     read_image,
     write_exr,
 )
-from .resize import area_resize, fit_within
+from ..resize import area_resize, fit_within
 
 logger = logging.getLogger(__name__)
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .cameras import PinholeCamera, direction_to_latlong
+from ..cameras import PinholeCamera, direction_to_latlong
 
 PANORAMA_ASPECT = 2.0
 FACE_PREFIX = "cube_"

@@ -2,7 +2,7 @@
 
 :func:`read_poses` accepts a COLMAP model folder (text or binary, or a parent
 with ``0/`` / ``sparse/0``), a ``transforms.json`` or a folder holding one, and
-returns a :class:`~gaslight_usd.colmap.ColmapModel`. :func:`write_poses` writes
+returns a :class:`~gaslight_usd.poses.colmap.ColmapModel`. :func:`write_poses` writes
 a folder as a COLMAP model (text, or binary) and a ``.json`` path as a
 transforms.json. Poses the user gives keep their own frame; when they carry no
 ``frame.json`` the frame facts say so (up axis estimated, units unknown).
@@ -14,10 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .colmap import ColmapModel, read_model, write_model
-from .errors import InputError
+from ..errors import InputError
+from .colmap import ColmapModel, find_colmap_model, read_model, write_model
 from .frame import given_frame
-from .kinds import find_colmap_model
 from .transforms_json import read_transforms, transforms_path, write_transforms
 
 
@@ -25,7 +24,7 @@ def read_poses(path: str | Path) -> ColmapModel:
     """A COLMAP model or a transforms.json as a :class:`ColmapModel`.
 
     ``model.frame`` always holds the frame facts: the stored ``frame.json`` (or
-    ``gaslight_frame`` key) when present, else :func:`~gaslight_usd.frame.given_frame`.
+    ``gaslight_frame`` key) when present, else :func:`~gaslight_usd.poses.frame.given_frame`.
     """
     path = Path(path)
     if not path.exists():

@@ -12,7 +12,7 @@ naming them when fewer than ``min_registered`` (a share) register.
 
 Lat-long panoramas (2:1 photos with ``panorama="auto"``, or all photos with
 ``"on"``) are cut into six cube faces that form a COLMAP rig: one centre, six
-fixed rotations (:mod:`gaslight_usd.panorama`). The model then holds the face
+fixed rotations (:mod:`gaslight_usd.poses.panorama`). The model then holds the face
 cameras, named ``cube_<face>/<photo>``.
 """
 
@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import GaslightError, InputError
+from ..imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
+from ..progress import Progress
 from . import panorama
 from .colmap import ColmapCamera, ColmapModel, read_model, write_model
-from .errors import GaslightError, InputError
-from .imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
-from .progress import Progress
 
 log = logging.getLogger(__name__)
 
