@@ -11,7 +11,12 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from gaslight_usd.cameras import PinholeCamera, direction_to_latlong, quaternion_to_matrix
+from gaslight_usd.cameras import (
+    PinholeCamera,
+    direction_to_latlong,
+    is_latlong,
+    quaternion_to_matrix,
+)
 from gaslight_usd.errors import InputError
 from gaslight_usd.poses import colour_points, read_poses
 from gaslight_usd.poses.colmap import ColmapModel, read_model
@@ -25,7 +30,7 @@ from gaslight_usd.poses.frame import (
     transform_model,
     umeyama,
 )
-from gaslight_usd.poses.panorama import FACES, cube_faces, face_camera, is_latlong
+from gaslight_usd.poses.panorama import FACES, cube_faces, face_camera
 from gaslight_usd.poses.sfm import SfmOptions, solve_poses, triangulate_known_poses
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from ..cameras import is_latlong
 from ..errors import GaslightError, InputError
 from ..imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
 from ..progress import Progress
@@ -152,7 +153,7 @@ def _stage_photos(photos: list[Path], work: Path, opts: SfmOptions
         spec, pixels = read_pixels(path, oiio.UINT8)
         sizes[path.name] = (spec.width, spec.height)
         pano = opts.panorama == "on" or (
-            opts.panorama == "auto" and panorama.is_latlong(spec.width, spec.height))
+            opts.panorama == "auto" and is_latlong(spec.width, spec.height))
         if not pano:
             (work / path.name).symlink_to(path.resolve())
             names.append(path.name)

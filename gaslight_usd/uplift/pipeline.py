@@ -17,10 +17,11 @@ import numpy as np
 import OpenImageIO as oiio
 
 from ..atomic import atomic_path
+from ..cameras import is_latlong
 from ..errors import InputError
 from ..poses.views import CLIP_LEVEL, View
 from .curves import InputTransform, input_transform
-from .panorama import is_latlong, uplift_panorama
+from .panorama import uplift_panorama
 from .predictors import Predictor, get_predictor
 from .recursive import uplift_recursive
 
@@ -92,7 +93,8 @@ def uplift_view(view: View, predictor: Predictor, transform: InputTransform,
     check_photo(view)
     curve = transform.curve
     encoded = view.encoded
-    panorama = opts.panorama == "on" or (opts.panorama == "auto" and is_latlong(encoded.shape))
+    h, w = encoded.shape[:2]
+    panorama = opts.panorama == "on" or (opts.panorama == "auto" and is_latlong(w, h))
     steps: list[int] = []
 
     def one(enc: np.ndarray) -> np.ndarray:
