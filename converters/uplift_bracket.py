@@ -18,9 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from gaslight_usd.chain import StageContext, StageResult
+from gaslight_usd.colour import CLIP_LEVEL
 from gaslight_usd.errors import InputError
 from gaslight_usd.kinds import Kind
-from gaslight_usd.poses.views import CLIP_LEVEL, load_views, write_hdr_view
+from gaslight_usd.poses.views import load_views, write_hdr_view
 from gaslight_usd.registry import Converter
 from gaslight_usd.uplift.bracket import (
     check_bracket,

@@ -44,6 +44,7 @@ from gaslight_usd.cameras import (
     latlong_directions,
     latlong_solid_angles,
 )
+from gaslight_usd.colour import REC709_Y
 from gaslight_usd.imageio import read_image
 from gaslight_usd.ply import write_ply
 from gaslight_usd.splats import SplatScene
@@ -59,7 +60,7 @@ PAIR_SIGMA_DEG = 1.5 * SIGMA_DEG
 AXES = np.concatenate([np.eye(3)[1:], -np.eye(3)])
 """The axes the splat groups sit around: all but +X, where the occluding pair is."""
 GROUPS = 4 * len(AXES)
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+LUMA = np.array(REC709_Y)
 
 
 def _mitsuba():

@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from ..colour import CLIP_LEVEL
 from ..evaluation import curves
 from ..evaluation.metrics import hdr_errors, light_source_errors
 from ..evaluation.reference import ReferencePair, make_pair, shared_sources
@@ -73,9 +74,6 @@ FULL_COUNT = 200
 QUICK_COUNT = 8
 SIZES = {"quick": {"photo": (128, 96), "render": 64, "spp": 8, "env": 128},
          "full": {"photo": (256, 192), "render": 128, "spp": 16, "env": 256}}
-
-CLIP_LEVEL = 0.99
-"""Encoded level from which a pixel counts as clipped (as the fast predictor's)."""
 
 UpliftFn = Callable[[np.ndarray, str], np.ndarray]
 _METHODS: dict[str, Callable[[ReferencePair], np.ndarray]] = {}

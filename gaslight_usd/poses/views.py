@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from .. import colour
+from ..colour import CLIP_LEVEL
 from ..imageio import (
     IMAGE_EXTENSIONS,
     LDR_EXTENSIONS,
@@ -36,9 +37,6 @@ from ..imageio import (
 from ..resize import area_resize, fit_within
 
 logger = logging.getLogger(__name__)
-
-CLIP_LEVEL = 0.99
-"""An encoded value at or above this (of full scale) counts as clipped."""
 
 CLIP_FLOOR_CHANNEL = "clip_floor"
 """The HDR views' extra EXR channel: in pixels the photo clipped, the luminance the photo

@@ -18,8 +18,9 @@ import OpenImageIO as oiio
 
 from ..atomic import atomic_path
 from ..cameras import is_latlong
+from ..colour import CLIP_LEVEL
 from ..errors import InputError
-from ..poses.views import CLIP_LEVEL, View
+from ..poses.views import View
 from .curves import InputTransform, input_transform
 from .panorama import uplift_panorama
 from .predictors import Predictor, get_predictor
