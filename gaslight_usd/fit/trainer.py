@@ -36,6 +36,7 @@ import numpy as np
 import torch
 
 from ..cameras import PinholeCamera
+from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..progress import Progress
@@ -74,17 +75,6 @@ def scene_extent(data: FitData, train: list[int]) -> float:
     return max(extent, 1e-2)
 
 
-def _luminance_weights(space: str) -> np.ndarray:
-    """Y weights of the views' colour space (Rec.709's when it is unnamed or unknown)."""
-    from ..colour import luminance_weights
-
-    try:
-        return luminance_weights(space) if space else np.array([0.2126, 0.7152, 0.0722],
-                                                               np.float32)
-    except InputError:  # an in-memory scene with a made-up space name
-        return np.array([0.2126, 0.7152, 0.0722], np.float32)
-
-
 def _order(step: int, n: int, seed: int) -> int:
     """The view of a step: a fresh seeded permutation of the training views each epoch."""
     epoch, pos = divmod(step, n)
@@ -109,7 +99,9 @@ class Trainer:
         self.floors = [None if not config.clip_bounds or (f := data.floor(i)) is None
                        else torch.as_tensor(f, device=device)
                        for i in range(len(data.images))]
-        self.y_weights = torch.as_tensor(_luminance_weights(data.colour_space), device=device)
+        # Rec.709's weights when the space is unnamed or unknown (in-memory scenes)
+        self.y_weights = torch.as_tensor(luminance_weights(data.colour_space or None,
+                                                           fallback=True), device=device)
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
 
@@ -123,7 +115,8 @@ class Trainer:
         names = [self.data.names[i] for i in self.train]
         floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
-                                        min(cfg.init_points, cfg.budget), rng, floors)
+                                        min(cfg.init_points, cfg.budget), rng, floors,
+                                        self.y_weights.cpu().numpy())
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
@@ -355,7 +348,8 @@ class Trainer:
         scene = self.model.to_scene(degree, {})
         cams = self.cameras()
         backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
-                                   cfg.backdrop_tiles, room=cfg.budget - scene.count)
+                                   cfg.backdrop_tiles, room=cfg.budget - scene.count,
+                                   y_weights=self.y_weights.cpu().numpy())
         if backdrop.count:
             scene = concatenate(scene, backdrop)
         lights = []
