@@ -71,7 +71,6 @@ from scipy import ndimage
 
 from ..colour import CLIP_LEVEL, REC709_Y
 from .curves import Curve
-from .predictors import register_predictor
 
 """Encoded level from which a channel counts as clipped."""
 WHITE = 0.9
@@ -429,5 +428,8 @@ def _factory(params: str | Path | None = None, **_: object) -> FastPredictor:
     return FastPredictor(params)
 
 
-register_predictor("fast", _factory,
-                   "calibrated highlight model on the CPU, no downloaded weights (default)")
+PREDICTORS = {
+    "fast": (_factory, "calibrated highlight model on the CPU, no downloaded weights (default)"),
+}
+"""The predictors this module offers: name -> (factory, description); see
+:mod:`.predictors`."""
