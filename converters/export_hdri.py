@@ -12,12 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import InputError
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import read_ply
 from gaslight_usd.probe_check import outside_warning
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult
 
 
 def probe_points(at, scene) -> list[tuple[float, float, float]]:

@@ -13,11 +13,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import GaslightError
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import read_ply
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult
 
 
 def relative_source(source: Path, folder: Path) -> str:

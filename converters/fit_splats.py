@@ -15,13 +15,12 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import InputError
 from gaslight_usd.fit import PRESETS, fit_splats, load_fit_data, preset
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import write_ply
 from gaslight_usd.provenance import tool_version
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult
 
 
 def checkpoint_path(output: Path) -> Path:

@@ -14,12 +14,11 @@ from __future__ import annotations
 
 from dataclasses import fields
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.kinds import Kind
 from gaslight_usd.poses.colmap import write_model
 from gaslight_usd.poses.frame import sfm_frame
 from gaslight_usd.poses.sfm import SfmOptions, solve_poses
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult
 
 _SFM_KEYS = {f.name for f in fields(SfmOptions)}
 

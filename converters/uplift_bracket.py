@@ -17,12 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.colour import CLIP_LEVEL
 from gaslight_usd.errors import InputError
 from gaslight_usd.kinds import Kind
 from gaslight_usd.poses.views import load_views, write_hdr_view
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult
 from gaslight_usd.uplift.bracket import (
     check_bracket,
     find_brackets,
@@ -95,8 +94,8 @@ def merge(ctx: StageContext) -> StageResult:
 
 def no_brackets(inputs: dict) -> str | None:
     """The reason this converter does not apply (None when brackets are present)."""
-    from gaslight_usd.chain import Settings
     from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
+    from gaslight_usd.registry import Settings
 
     s = Settings.resolved()
     found = find_brackets(list_images(inputs[Kind.LDR_VIEWS].path, LDR_EXTENSIONS),

@@ -8,11 +8,10 @@ shrunk to first; 0: as shot). Photos are read and uplifted one at a time.
 
 from __future__ import annotations
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
 from gaslight_usd.kinds import Kind
 from gaslight_usd.poses.views import iter_views, write_hdr_view
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult
 from gaslight_usd.uplift.pipeline import (
     UpliftOptions,
     make_predictor,

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .chain import ChainRun, Settings
+from .chain import ChainRun
 from .kinds import Artifact, Kind, detect_kind
 from .progress import Progress
-from .registry import Registry, default_registry
+from .registry import Registry, Settings, default_registry
 
 DEFAULT_TARGETS = (Kind.SPLATS, Kind.USD, Kind.HDRI)
 

@@ -1,5 +1,10 @@
 """The converter registry: every arrow of the chain is a named converter.
 
+This module is the whole converter contract: what a converter is given
+(:class:`StageContext` with the run's :class:`Settings`), what it returns
+(:class:`StageResult`) and how it is found. The chain runner depends on it,
+never the other way round.
+
 Built-in converters live in the ``gaslight_usd.converters`` package, one module
 per step implementation; each module exposes ``CONVERTERS`` (a list of
 :class:`Converter`). Third parties add theirs through the entry-point group
@@ -14,13 +19,13 @@ import importlib
 import logging
 import pkgutil
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
-from .kinds import Kind
-
-if TYPE_CHECKING:
-    from .chain import StageContext, StageResult
+from . import colour
+from .kinds import Artifact, Kind
+from .progress import Progress
 
 log = logging.getLogger(__name__)
 
@@ -28,12 +33,58 @@ ENTRY_POINT_GROUP = "gaslight_usd.converters"
 BUILTIN_PACKAGE = "gaslight_usd.converters"
 
 
+@dataclass
+class Settings:
+    """Run-wide settings every converter may read."""
+
+    ocio_config: str = colour.BUILTIN_CONFIG
+    input_space: str = colour.DEFAULT_INPUT_SPACE
+    working_space: str = colour.DEFAULT_WORKING_SPACE
+    device: str = "cpu"
+    seed: int = 0
+
+    @classmethod
+    def resolved(cls, ocio_config: str | None = None, input_space: str | None = None,
+                 working_space: str | None = None, **kw: Any) -> Settings:
+        """Settings with the OCIO config resolved and the space names checked."""
+        uri = colour.resolve_config_uri(ocio_config)
+        return cls(
+            ocio_config=uri,
+            input_space=colour.resolve_space(input_space or colour.DEFAULT_INPUT_SPACE, uri),
+            working_space=colour.resolve_space(
+                working_space or colour.DEFAULT_WORKING_SPACE, uri),
+            **kw,
+        )
+
+
+@dataclass
+class StageContext:
+    inputs: dict[Kind, Artifact]
+    output: Path
+    settings: Settings
+    options: dict[str, Any]
+    progress: Progress
+    resume: bool = False
+    """Whether the run resumes: a stage may continue its own interrupted work
+    (the fit from its checkpoint) instead of starting over."""
+
+    def input(self, kind: Kind) -> Artifact:
+        return self.inputs[kind]
+
+
+@dataclass
+class StageResult:
+    metadata: dict[str, Any] = field(default_factory=dict)
+    counts: dict[str, Any] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass(frozen=True)
 class Converter:
     """One step of the chain: typed inputs -> one output kind.
 
     ``run(ctx)`` reads ``ctx.inputs``, writes ``ctx.output`` (atomically) and
-    returns a :class:`~gaslight_usd.chain.StageResult`. ``method`` groups
+    returns a :class:`StageResult`. ``method`` groups
     alternative implementations of one step (e.g. ``uplift``: ``bracket``,
     ``recursive``); ``priority`` orders them when the user names none.
     """

@@ -84,10 +84,10 @@ def test_a_killed_run_resumes_its_fit_from_the_checkpoint(posed_views, tmp_path,
 
 def test_a_changed_input_or_fresh_run_does_not_resume(posed_views, tmp_path):
     """The checkpoint is only trusted for the very stage that was killed."""
-    from gaslight_usd.chain import ChainRun, Settings, StageResult
+    from gaslight_usd.chain import ChainRun
     from gaslight_usd.kinds import Artifact, Kind
     from gaslight_usd.progress import Progress
-    from gaslight_usd.registry import Converter, Registry
+    from gaslight_usd.registry import Converter, Registry, Settings, StageResult
 
     seen, kill = [], [False]
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..chain import StageContext
 from ..errors import InputError
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
+from ..registry import StageContext
 from ._common import add_common, emit, progress_from, settings_from
 from ._points import parse_point
 from ._preview import add_preview, check_preview, write_preview_for
