@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..chain import ChainRun
 from ..errors import InputError
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
-from ..registry import StageContext
+from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
 from ._points import parse_point
 
@@ -100,8 +101,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..converters.export_usd import export_usd_stage
-
     if not args.splats.is_file():
         raise InputError("no such file", args.splats)
     check_output(args.output, folder=args.output.suffix.lower() not in USD_ROOT_SUFFIXES)
@@ -114,10 +113,17 @@ def run(args: argparse.Namespace) -> int:
                "non_emitters": args.non_emitters, "rig_tolerance": args.rig_tolerance,
                "at": args.at, "dome_width": args.dome_size,
                "display_ply": args.display_ply, "default_variant": args.default_variant}
-    ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
-                       output=args.output, settings=settings, options=options,
-                       progress=progress_from(args))
-    result = export_usd_stage(ctx)
+    # Through the registry like every stage: report.json beside the root layer, and a
+    # plug-in export converter of higher priority is honoured.
+    root = args.output
+    if root.suffix.lower() not in USD_ROOT_SUFFIXES:  # a folder: the root layer goes in it
+        root = root / Kind.USD.default_name
+    folder = root.parent
+    runner = ChainRun(folder if str(folder) else Path("."), settings, default_registry(),
+                      progress_from(args))
+    runner.run([Artifact(Kind.SPLATS, args.splats)], [Kind.USD],
+               options={"export": options}, outputs={Kind.USD: root}, resume=False)
+    result = runner.records[-1]
     lines = [f"wrote {args.output} ({', '.join(args.forms)})"]
     m = result.metrics
     if "instancer" in m:

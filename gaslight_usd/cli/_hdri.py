@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..chain import ChainRun
 from ..errors import InputError
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
-from ..registry import StageContext
+from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
 from ._points import parse_point
 from ._preview import add_preview, check_preview, write_preview_for
@@ -67,7 +68,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..converters.export_hdri import export_hdri_stage
     from ..devices import resolve_device
 
     resolve_device(args.device)
@@ -82,10 +82,14 @@ def run(args: argparse.Namespace) -> int:
     settings = settings_from(args, device=args.device)
     options = {"at": args.at, "size": args.size, "cube": args.cube, "faces": args.faces,
                "tx": args.tx, "output_space": args.output_space}
-    ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
-                       output=args.output, settings=settings, options=options,
-                       progress=progress_from(args))
-    result = export_hdri_stage(ctx)
+    # Through the registry like every stage: report.json beside the EXRs, and a plug-in
+    # HDRI converter of higher priority is honoured.
+    folder = args.output.parent
+    runner = ChainRun(folder if str(folder) else Path("."), settings, default_registry(),
+                      progress_from(args))
+    runner.run([Artifact(Kind.SPLATS, args.splats)], [Kind.HDRI],
+               options={"hdri": options}, outputs={Kind.HDRI: args.output}, resume=False)
+    result = runner.records[-1]
     probes = result.metadata["probes"]
     text = "\n".join(f"probe at {tuple(p['position'])} ({p['chosen']}): "
                      + ", ".join(p["files"]) for p in probes)
