@@ -1,6 +1,6 @@
 """Calibrate (train) the fast predictor on real HDR panoramas, reproducibly.
 
-    python -m gaslight_usd.uplift.calibrate [--hdri DIR | --panoramas NAME ...]
+    python -m gaslight_usd.bench.calibrate [--hdri DIR | --panoramas NAME ...]
         [--crops 600] [--seed 1000] [--clamped-weight 0] [--no-light-weight 1]
         [--exclude NAME ...] [--cache CROPS.npz] [--no-lopo] [-o PARAMS.json]
 
@@ -59,8 +59,8 @@ from ..evaluation import curves as camera_curves
 from ..evaluation.reference import make_pair, shared_sources
 from ..evaluation.relight import RelightRenderer
 from ..evaluation.shared_panoramas import BY_NAME, NO_LIGHT, TRUSTED, folder_of, load_shared
-from .curves import Curve, lut_curve
-from .fast_predictor import (
+from ..uplift.curves import Curve, lut_curve
+from ..uplift.fast_predictor import (
     FEATURES,
     LEGACY_FEATURES,
     LOPO_FILE,
@@ -369,7 +369,7 @@ def scores(data: CropSet, model_params: dict) -> dict[str, np.ndarray]:
     """Per-crop relight PSNR of the model as shipped (``fast``: its log2 means times
     :data:`.fast_predictor.SHRINK`), with each factor of :data:`SHRINKS` (``fast xA``),
     the baseline and the true means."""
-    from .fast_predictor import Mlp
+    from ..uplift.fast_predictor import Mlp
 
     log_mean, mix, share = Mlp(model_params).heads(data.features)
     shrunk = {f"fast x{a}": relight_psnr(data, a * log_mean, mix, share).numpy()
@@ -538,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
     if "--cache" in given:  # a cache only saves time: the numbers do not depend on it
         at = given.index("--cache")
         del given[at:at + 2]
-    command = " ".join(["python -m gaslight_usd.uplift.calibrate", *given])
+    command = " ".join(["python -m gaslight_usd.bench.calibrate", *given])
     if not args.no_lopo:
         lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads, **steps)
         models = {name: _rounded(m) for name, m in models.items()}

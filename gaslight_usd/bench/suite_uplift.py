@@ -35,7 +35,7 @@ same with every region's power half a stop under and over the truth
 must know the power; the photo's own value stays the floor). Other
 modules add theirs with :func:`register_uplift_method`, and ceilings that
 read the truth with :func:`register_reference_method`; the suite imports
-the optional module ``gaslight_usd.uplift.bench_methods`` and the entry
+the optional module ``gaslight_usd.bench.uplift_methods`` and the entry
 points of group ``gaslight_usd.bench_uplift`` (each a callable taking
 ``register_uplift_method``) before it runs, so methods living there join
 without this file changing. A plug-in that fails to load is reported as a
@@ -148,7 +148,7 @@ register_reference_method("region-mean-oracle-0.5-stop-over",
                           lambda pair: region_mean_oracle(pair, 0.5))
 
 
-PLUGIN_MODULE = "gaslight_usd.uplift.bench_methods"
+PLUGIN_MODULE = "gaslight_usd.bench.uplift_methods"
 ENTRY_POINT_GROUP = "gaslight_usd.bench_uplift"
 
 

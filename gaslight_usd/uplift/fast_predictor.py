@@ -5,7 +5,7 @@ No downloaded weights, numpy only, well under a second per megapixel.
 Model. The photo is linearised through its curve; a pixel is clipped when its
 brightest channel reaches ``CLIP_LEVEL``. Clipped pixels are grouped into regions
 (8-connected components) and a two-layer perceptron (:data:`PARAMS_FILE`, a
-few KB, trained by ``python -m gaslight_usd.uplift.calibrate``) predicts, for
+few KB, trained by ``python -m gaslight_usd.bench.calibrate``) predicts, for
 every region, ``log2`` of its mean brightest linear channel (relative to the
 photo's white, so 0 means "just white") from region features:
 
@@ -88,7 +88,7 @@ On a panorama it never saw, the perceptron's full estimate overshoots often
 enough to cost more than it gains (an overestimated "sun" in a near-white sky
 costs far more relight PSNR than an underestimate). The factor is chosen by the
 leave-one-panorama-out gain over all the calibration panoramas
-(``python -m gaslight_usd.uplift.calibrate`` scores every factor of
+(``python -m gaslight_usd.bench.calibrate`` scores every factor of
 ``calibrate.SHRINKS``), and checked on the uplift bench, where
 ``recursive-fast-unshrunk`` is charted beside it and ``recursive-fast-lopo``
 scores each panorama with the model fitted without it
