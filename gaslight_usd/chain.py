@@ -226,6 +226,8 @@ class ChainRun:
         artifacts: dict[Kind, Artifact] = {a.kind: a for a in given}
         self.given = list(artifacts.values())
         steps = self._steps(artifacts, targets, choose)
+        for conv in steps:  # before any work: an unknown option is an error, not dropped
+            self.registry.check_options(conv.step, (options or {}).get(conv.step, {}))
         check_output(self.out_dir, folder=True)
         for kind, path in (outputs or {}).items():
             check_output(path, folder=_is_folder_output(kind, Path(path)))

@@ -18,12 +18,13 @@ from __future__ import annotations
 import importlib
 import logging
 import pkgutil
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from . import colour
+from .errors import UsageError
 from .kinds import Artifact, Kind
 from .progress import Progress
 
@@ -101,9 +102,37 @@ class Converter:
     converter applies, else the reason it does not (e.g. "no brackets"). When
     the user named no converter for the step, the runner then falls back to
     the next one for the same step."""
+    options: type | None = None
+    """The dataclass of this converter's options (its defaults are the defaults);
+    ``run`` builds it with :func:`options_from`. None: a plug-in that takes any."""
 
     def refusal(self, inputs: dict[Kind, Any]) -> str | None:
         return self.accepts(inputs) if self.accepts else None
+
+
+T = TypeVar("T")
+
+
+def option_key(f: Any) -> str:
+    """The options-dict key of a dataclass field: its ``key`` metadata, else its name
+    (``as`` is a Python keyword, so the USD forms field is ``forms`` with key ``as``)."""
+    return f.metadata.get("key", f.name)
+
+
+def option_names(options: type) -> set[str]:
+    """The keys an options dataclass takes."""
+    return {option_key(f) for f in fields(options)}
+
+
+def options_from(options: type[T], given: Mapping[str, Any]) -> T:
+    """``options`` built from a step's options dict: None values keep the default.
+
+    Keys the dataclass does not have are left out: they belong to another converter
+    of the same step (the chain has refused keys no converter of the step takes,
+    :meth:`Registry.check_options`).
+    """
+    return options(**{f.name: given[option_key(f)] for f in fields(options)
+                      if given.get(option_key(f)) is not None})
 
 
 class Registry:
@@ -133,6 +162,22 @@ class Registry:
         """Converters of the same step, inputs and output as ``conv``, preferred first."""
         return [c for c in self.producing(conv.output)
                 if c.step == conv.step and set(c.inputs) == set(conv.inputs)]
+
+    def check_options(self, step: str, given: Mapping[str, Any]) -> None:
+        """Raise :class:`UsageError` naming the options no converter of ``step`` takes.
+
+        A step's options go to whichever of its converters runs (``auto`` may fall
+        back to another), so a key is known when one of them takes it; a step with a
+        converter that declares no options (a plug-in) takes anything.
+        """
+        convs = [c for c in self._by_name.values() if c.step == step]
+        if not convs or any(c.options is None for c in convs):
+            return
+        known = set().union(*(option_names(c.options) for c in convs))
+        unknown = sorted(set(given) - known)
+        if unknown:
+            raise UsageError(f"unknown {step} option(s): {', '.join(unknown)} "
+                             f"(known: {', '.join(sorted(known))})")
 
     def producing(self, kind: Kind) -> list[Converter]:
         """Converters that output ``kind``, preferred first."""

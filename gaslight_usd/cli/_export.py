@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..chain import ChainRun
 from ..errors import InputError
+from ..export_options import UsdExportOptions as D
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
 from ..registry import default_registry
@@ -81,18 +82,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the 'lighting' variant scene.usda selects (default: rig, which "
                         "Blender, usdview and Karma all import; Blender drops "
                         "particlefield)")
-    p.add_argument("--palette-tolerance", type=float, default=0.10, metavar="REL",
-                   help="95th-percentile relative colour error allowed for the "
-                        "instancer palette (default 0.10)")
-    p.add_argument("--non-emitters", choices=["drop", "diffuse"], default="drop",
+    p.add_argument("--palette-tolerance", type=float, default=D.palette_tolerance,
+                   metavar="REL", help="95th-percentile relative colour error allowed for "
+                   f"the instancer palette (default {D.palette_tolerance:.2f})")
+    p.add_argument("--non-emitters", choices=["drop", "diffuse"], default=D.non_emitters,
                    help="what the instancer does with splats below the threshold")
-    p.add_argument("--rig-tolerance", type=float, default=0.05, metavar="REL",
+    p.add_argument("--rig-tolerance", type=float, default=D.rig_tolerance, metavar="REL",
                    help="irradiance error at the probe allowed for the rig, relative "
-                        "to its largest irradiance (default 0.05)")
+                        f"to its largest irradiance (default {D.rig_tolerance})")
     p.add_argument("--at", type=parse_point, metavar="X,Y,Z",
                    help="rig probe point (default: centre of the splats' bounds)")
-    p.add_argument("--dome-size", type=int, default=1024, metavar="N",
-                   help="dome lat-long width in pixels (default 1024)")
+    p.add_argument("--dome-size", type=int, default=D.dome_width, metavar="N",
+                   help=f"dome lat-long width in pixels (default {D.dome_width})")
     p.add_argument("--display-ply", type=Path, metavar="PATH",
                    help="also write a display-referred (tone-mapped) PLY for viewers "
                         "that clip HDR; its exposure is in the header comments")

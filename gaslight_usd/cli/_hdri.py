@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ..chain import ChainRun
 from ..errors import InputError
+from ..export_options import HdriOptions
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
 from ..registry import default_registry
@@ -51,9 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "to free space)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PROBE.exr",
                    help="lat-long EXR to write (numbered when several --at)")
-    p.add_argument("--size", type=int, default=2048, metavar="N",
+    p.add_argument("--size", type=int, default=HdriOptions.size, metavar="N",
                    help="lat-long width in pixels (height N/2; cube faces N/4); "
-                        "default 2048")
+                        f"default {HdriOptions.size}")
     p.add_argument("--cube", action="store_true", help="also write the cube map")
     p.add_argument("--faces", action="store_true", help="also write six face files")
     p.add_argument("--tx", action="store_true",

@@ -42,6 +42,21 @@ from .merge import merge_stack
 from .similarity import THUMB_SIDE, Thumbnail, similarity, thumbnail
 
 
+@dataclass
+class BracketOptions:
+    """The options of the bracket merge (converter ``uplift.bracket``); the CLI reads
+    its defaults from here."""
+
+    group_file: str | None = None
+    """A grouping file (one view per line, or JSON) overriding the EXIF grouping."""
+    max_size: int = 0
+    """Long side (pixels) photos are shrunk to (0: as shot)."""
+    response: str = "ocio"
+    """ocio: the input space's curve; debevec: recovered from each bracket."""
+    align: bool = True
+    save_stacks: bool = False
+
+
 def photo_of_view(view: View) -> Photo:
     """The grouping facts of a loaded photo (capture time from its header)."""
     from ..imageio import exposure_from_spec, read_header

@@ -24,17 +24,20 @@ from ..poses.views import View
 from .curves import InputTransform, input_transform
 from .panorama import uplift_panorama
 from .predictors import Predictor, get_predictor
-from .recursive import uplift_recursive
+from .recursive import MAX_STEPS, THRESHOLD, uplift_recursive
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
 class UpliftOptions:
+    """The options of the recursive uplift (converter ``uplift.recursive``); the CLI
+    reads its defaults from here."""
+
     predictor: str = "fast"
     weights: str | None = None
-    threshold: float = 0.9
-    max_steps: int = 6
+    threshold: float = THRESHOLD
+    max_steps: int = MAX_STEPS
     brighter: bool = False
     save_stacks: bool = False
     panorama: str = "auto"
@@ -43,12 +46,7 @@ class UpliftOptions:
     """Long side (pixels) photos are shrunk to before the uplift (0: as shot). ``run``
     sets it from the fit's working size, so nothing works on pixels the fit drops."""
     extra: dict[str, Any] = field(default_factory=dict)
-
-    @classmethod
-    def from_dict(cls, options: dict[str, Any]) -> UpliftOptions:
-        known = {k: v for k, v in options.items() if k in cls.__dataclass_fields__ and
-                 v is not None}
-        return cls(**known)
+    """Further keyword options of the predictor (a plug-in's own)."""
 
 
 def check_photo(view: View) -> None:
