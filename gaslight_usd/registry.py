@@ -60,6 +60,9 @@ class Settings:
 
 @dataclass
 class StageContext:
+    """What a converter is given: its inputs, where to write, the run's settings and
+    its step's options (a dict; :func:`options_from` types it)."""
+
     inputs: dict[Kind, Artifact]
     output: Path
     settings: Settings
@@ -75,6 +78,9 @@ class StageContext:
 
 @dataclass
 class StageResult:
+    """What a converter returns: facts about its output (``metadata``, travels with the
+    artifact), ``counts`` and ``metrics`` (both written to report.json)."""
+
     metadata: dict[str, Any] = field(default_factory=dict)
     counts: dict[str, Any] = field(default_factory=dict)
     metrics: dict[str, Any] = field(default_factory=dict)
