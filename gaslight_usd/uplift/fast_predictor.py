@@ -70,6 +70,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..colour import CLIP_LEVEL, REC709_Y
+from ..errors import InputError
 from .curves import Curve
 
 """Encoded level from which a channel counts as clipped."""
@@ -424,7 +425,12 @@ class FastPredictor:
         return curve.reexpose(encoded, 2.0)
 
 
-def _factory(params: str | Path | None = None, **_: object) -> FastPredictor:
+def _factory(params: str | Path | None = None, **unknown: object) -> FastPredictor:
+    """The ``fast`` predictor; an option it does not take is an error, not ignored."""
+    if unknown:
+        raise InputError(f"the fast predictor takes no {', '.join(sorted(unknown))} option "
+                         "(it needs no downloaded weights; 'params' names another "
+                         "calibration JSON)")
     return FastPredictor(params)
 
 
