@@ -102,6 +102,7 @@ class Trainer:
         # Rec.709's weights when the space is unnamed or unknown (in-memory scenes)
         self.y_weights = torch.as_tensor(luminance_weights(data.colour_space or None,
                                                            fallback=True), device=device)
+        # the training views' mean: the random background's scale and the idle-prune level
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
 
@@ -247,12 +248,14 @@ class Trainer:
         return min(self.cfg.backdrop_tiles // 2, self.cfg.budget // 10)
 
     def _prune_idle(self) -> int:
+        """Prune splats that contribute next to nothing to the training views, their
+        radiance measured against those views' mean level (:attr:`mean_level`)."""
         degree = self.active_degree()
         cams = self.cameras()
         weight, radiance = contributions(self.model.params(degree),
                                          [cams[i] for i in self.train], degree)
-        mean_level = float(np.mean([im.mean() for im in self.data.images])) or 1.0
-        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / mean_level, min=1.0)
+        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
+                                     min=1.0)
         idle = score < MIN_CONTRIBUTION
         self.model.prune(idle)
         return int(idle.sum())
