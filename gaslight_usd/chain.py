@@ -28,63 +28,22 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from . import colour
 from .atomic import write_text
 from .errors import InputError, NotBuiltYet, UsageError
 from .kinds import Artifact, Kind
 from .outputs import check_output
 from .progress import Progress
 from .provenance import tool_version, versions
-from .registry import Converter, Registry, default_registry
+from .registry import (
+    Converter,
+    Registry,
+    Settings,
+    StageContext,
+    default_registry,
+)
 
 STATE_FILE = ".gaslight-state.json"
 REPORT_FILE = "report.json"
-
-
-@dataclass
-class Settings:
-    """Run-wide settings every converter may read."""
-
-    ocio_config: str = colour.BUILTIN_CONFIG
-    input_space: str = colour.DEFAULT_INPUT_SPACE
-    working_space: str = colour.DEFAULT_WORKING_SPACE
-    device: str = "cpu"
-    seed: int = 0
-
-    @classmethod
-    def resolved(cls, ocio_config: str | None = None, input_space: str | None = None,
-                 working_space: str | None = None, **kw: Any) -> Settings:
-        """Settings with the OCIO config resolved and the space names checked."""
-        uri = colour.resolve_config_uri(ocio_config)
-        return cls(
-            ocio_config=uri,
-            input_space=colour.resolve_space(input_space or colour.DEFAULT_INPUT_SPACE, uri),
-            working_space=colour.resolve_space(
-                working_space or colour.DEFAULT_WORKING_SPACE, uri),
-            **kw,
-        )
-
-
-@dataclass
-class StageContext:
-    inputs: dict[Kind, Artifact]
-    output: Path
-    settings: Settings
-    options: dict[str, Any]
-    progress: Progress
-    resume: bool = False
-    """Whether the run resumes: a stage may continue its own interrupted work
-    (the fit from its checkpoint) instead of starting over."""
-
-    def input(self, kind: Kind) -> Artifact:
-        return self.inputs[kind]
-
-
-@dataclass
-class StageResult:
-    metadata: dict[str, Any] = field(default_factory=dict)
-    counts: dict[str, Any] = field(default_factory=dict)
-    metrics: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -267,6 +226,8 @@ class ChainRun:
         artifacts: dict[Kind, Artifact] = {a.kind: a for a in given}
         self.given = list(artifacts.values())
         steps = self._steps(artifacts, targets, choose)
+        for conv in steps:  # before any work: an unknown option is an error, not dropped
+            self.registry.check_options(conv.step, (options or {}).get(conv.step, {}))
         check_output(self.out_dir, folder=True)
         for kind, path in (outputs or {}).items():
             check_output(path, folder=_is_folder_output(kind, Path(path)))

@@ -79,9 +79,9 @@ def posed_hdr_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Nine 48x48 HDR views of a small closed synthetic room (bright emitters inside),
     their true COLMAP model with sparse points from the truth (no triangulation): the
     cheapest real input a fit, an export and HDRIs run on (``hdr/``, ``sparse/``)."""
-    from gaslight_usd.colmap import ColmapModel, write_model
     from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
     from gaslight_usd.imageio import write_exr
+    from gaslight_usd.poses.colmap import ColmapModel, write_model
     from gaslight_usd.render import render
 
     root = tmp_path_factory.mktemp("posed_hdr")

@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from gaslight_usd import registry as registry_mod
-from gaslight_usd.chain import ChainRun, Settings, StageResult, plan
+from gaslight_usd.chain import ChainRun, plan
 from gaslight_usd.errors import GaslightError, NotBuiltYet, UsageError
 from gaslight_usd.imageio import read_image, write_exr
 from gaslight_usd.kinds import Artifact, Kind, detect_kind
+from gaslight_usd.poses.views import hdr_view_paths
 from gaslight_usd.progress import Progress
-from gaslight_usd.registry import Converter, Registry, default_registry
-from gaslight_usd.views import hdr_view_paths
+from gaslight_usd.registry import Converter, Registry, Settings, StageResult, default_registry
 
 
 def mean_panorama(ctx):

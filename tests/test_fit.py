@@ -9,7 +9,6 @@ import torch
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import EXIT_BAD_INPUT, InputError
 from gaslight_usd.fit import fit_splats, load_fit_data, preset
 from gaslight_usd.fit.data import box_downscale, scale_camera
@@ -17,6 +16,7 @@ from gaslight_usd.fit.losses import elongation_penalty, fit_loss, held_out_error
 from gaslight_usd.fit.synthetic import closed_scene, look_at, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
+from gaslight_usd.poses.colmap import ColmapModel, write_model
 from gaslight_usd.progress import Progress
 from gaslight_usd.render import render
 

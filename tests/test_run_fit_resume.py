@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import EXIT_INTERRUPTED
 from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
+from gaslight_usd.poses.colmap import ColmapModel, write_model
 from gaslight_usd.render import render
 
 
@@ -84,10 +84,10 @@ def test_a_killed_run_resumes_its_fit_from_the_checkpoint(posed_views, tmp_path,
 
 def test_a_changed_input_or_fresh_run_does_not_resume(posed_views, tmp_path):
     """The checkpoint is only trusted for the very stage that was killed."""
-    from gaslight_usd.chain import ChainRun, Settings, StageResult
+    from gaslight_usd.chain import ChainRun
     from gaslight_usd.kinds import Artifact, Kind
     from gaslight_usd.progress import Progress
-    from gaslight_usd.registry import Converter, Registry
+    from gaslight_usd.registry import Converter, Registry, Settings, StageResult
 
     seen, kill = [], [False]
 
