@@ -12,26 +12,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import write_posed_views
 
 from gaslight_usd.cli.main import main
 from gaslight_usd.errors import EXIT_INTERRUPTED
-from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
-from gaslight_usd.poses.colmap import ColmapModel, write_model
-from gaslight_usd.render import render
 
 
 @pytest.fixture(scope="module")
 def posed_views(tmp_path_factory):
     """Nine 48x48 HDR views of a closed synthetic scene and their COLMAP model."""
     root = tmp_path_factory.mktemp("posed")
-    truth, cams = closed_scene(), ring_cameras()
-    (root / "hdr").mkdir()
-    for cam in cams:
-        write_exr(root / "hdr" / f"{cam.name[:-4]}.exr", render(truth, cam).image.numpy(),
-                  "lin_rec709", {"gaslight:exposure_scale": 1.0}, half=False)
-    write_model(root / "sparse", ColmapModel(cameras=cams))
+    write_posed_views(root, with_points=False)
     return root
 
 
