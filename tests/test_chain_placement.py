@@ -33,3 +33,29 @@ def test_placement_finds_the_lamp_and_the_window_and_no_stray_power():
     moved = {**LAMP_LIGHT, "center": (LAMP + [1.0, 0.0, 0.0]).tolist()}
     row = light_placement(scene, [moved, WINDOW_LIGHT])
     assert row["light_dist_lamp"] > 0.8 and row["stray_light_share"] > 0.0
+
+
+def test_emitter_spread_sees_floaters_in_front_of_the_window():
+    """A window's splats on its wall spread 0; the same window with bright splats
+    floating 0.3 m in front of it (what a fit leaves: the probe near it sees them close
+    up) spreads 0.3 m and shows their power as floating."""
+    from gaslight_usd.bench.suite_chain import emitter_spread
+    from gaslight_usd.splats import SplatScene
+
+    scene, parts = room_scene()
+    emitters = np.zeros(scene.count, bool)
+    emitters[parts["window"]] = emitters[parts["lamp"]] = True
+    row = emitter_spread(scene, emitters, [LAMP_LIGHT, WINDOW_LIGHT])
+    assert row["light_spread_window"] == pytest.approx(0.0, abs=0.01)
+    assert row["light_spread_lamp"] < 0.1 and row["floating_share"] == 0.0
+
+    window = parts["window"]
+    floaters = scene.positions[window] - np.array([0.3, 0.0, 0.0], np.float32)
+    both = SplatScene.from_activated(
+        np.concatenate([scene.positions[window], floaters]),
+        np.concatenate([scene.base_colours[window]] * 2),
+        np.concatenate([scene.scales[window]] * 2), np.concatenate([scene.opacities[window]] * 2))
+    row = emitter_spread(both, np.ones(both.count, bool), [LAMP_LIGHT, WINDOW_LIGHT])
+    assert row["light_spread_window"] == pytest.approx(0.3, abs=0.01)
+    assert row["floating_share"] == pytest.approx(0.5, abs=0.01)
+    assert np.isnan(row["light_spread_lamp"])

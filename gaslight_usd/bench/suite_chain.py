@@ -27,7 +27,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``power_err_<light>`` -- log2(found / true) of the light arriving at the probe from
   each true light's direction (a cone 5 degrees wider than the light), in stops;
 * ``light_dist_<light>``, ``lights_found``, ``stray_light_share`` -- where the lights
-  the export would write are (:func:`light_placement`), the same on each probe's row.
+  the export would write are (:func:`light_placement`), the same on each probe's row;
+  ``light_spread_<light>``, ``floating_share`` -- where their splats are
+  (:func:`emitter_spread`).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -197,10 +199,12 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str
     * ``stray_light_share`` -- the share of the found lights' power more than 0.3 m from
       every true emitter (floating or smeared bright splats).
     """
-    from ..lights import find_lights
+    from ..lights import search_lights
 
-    found = find_lights(scene)
-    row: dict[str, Any] = {"lights_found": len(found)}
+    search = search_lights(scene)
+    found = search.lights
+    row: dict[str, Any] = {"lights_found": len(found), **emitter_spread(scene, search.emitters,
+                                                                        lights)}
     if not found:
         return row | {f"light_dist_{li['name']}": float("nan") for li in lights} | {
             "stray_light_share": float("nan")}
@@ -212,6 +216,47 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str
     power = np.array([float(f.power.sum()) for f in found])
     stray = np.maximum(dists.min(axis=0) - radius, 0.0) > 0.3
     row["stray_light_share"] = round(float(power[stray].sum() / max(power.sum(), 1e-30)), 3)
+    return row
+
+
+FLOATING_M = 0.1
+"""Emitter splats farther than this from every true emitter's surface are floating."""
+
+
+def emitter_spread(scene: SplatScene, emitters: np.ndarray, lights: list[dict[str, Any]]
+                   ) -> dict[str, Any]:
+    """Where each light's *splats* are, not just its centre (issue 16 item 4: a window
+    is flat in its wall, a bulb compact; splats floating off it or smeared along the
+    viewing rays are a defect a probe near the light sees close up):
+
+    * ``light_spread_<name>`` -- metres from the true emitter's surface within which 90 %
+      of the power of the emitter splats nearest to it lies (NaN: no emitter near it);
+    * ``floating_share`` -- the share of all emitter splats' power more than
+      :data:`FLOATING_M` from every true emitter.
+
+    Power is radiance x integrated alpha (:func:`gaslight_usd.surroundings.splat_sigma`).
+    """
+    from ..surroundings import splat_sigma
+
+    idx = np.flatnonzero(emitters)
+    row: dict[str, Any] = {f"light_spread_{li['name']}": float("nan") for li in lights}
+    if not len(idx) or not lights:
+        return row | {"floating_share": float("nan")}
+    pos = scene.positions[idx].astype(np.float64)
+    power = (scene.base_colours[idx].max(axis=1) * scene.opacities[idx]
+             * splat_sigma(scene)[idx] ** 2).astype(np.float64)
+    dists = np.stack([emitter_distance(li, pos) for li in lights])  # (lights, splats)
+    nearest = dists.argmin(axis=0)
+    best = dists.min(axis=0)
+    for k, li in enumerate(lights):
+        mine = nearest == k
+        if mine.any():
+            order = np.argsort(best[mine])
+            share = np.cumsum(power[mine][order]) / max(power[mine].sum(), 1e-30)
+            at = min(int(np.searchsorted(share, 0.9)), len(order) - 1)
+            row[f"light_spread_{li['name']}"] = round(float(best[mine][order][at]), 3)
+    row["floating_share"] = round(float(power[best > FLOATING_M].sum()
+                                        / max(power.sum(), 1e-30)), 3)
     return row
 
 
