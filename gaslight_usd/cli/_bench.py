@@ -57,6 +57,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scene", action="append", default=[], metavar="NAME",
                    help="chain suite: only these scenes (repeatable; room, bulb, panels, "
                         "shade; default: all)")
+    p.add_argument("--perturb", action="append", default=[], metavar="NAME",
+                   help="stability suite: only these perturbations (repeatable; photos, "
+                        "noise, jpeg, white_balance, exposure, motion_blur, light_half_out, "
+                        "light_one_view, no_clip, clipped_frames, pose_noise)")
+    p.add_argument("--full", action="store_true",
+                   help="stability suite: every strength of each perturbation, not the "
+                        "default few")
     p.add_argument("--photos", type=_numbers(int), metavar="N[,N...]",
                    help="scale suite: photo counts (e.g. 12,24,48,96)")
     p.add_argument("--megapixels", type=_numbers(float), metavar="MP[,MP...]",
@@ -129,7 +136,8 @@ def run(args: argparse.Namespace) -> int:
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
                "verbose": args.verbose, "presets": tuple(args.preset) or None,
                "methods": list(args.method) or None, "scenes": tuple(args.scene) or None,
-               "photos": args.photos, "megapixels": args.megapixels}
+               "photos": args.photos, "megapixels": args.megapixels,
+               "perturbations": list(args.perturb) or None, "full": args.full}
     results = []
     for name in names:
         progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")
