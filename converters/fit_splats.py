@@ -7,7 +7,9 @@ resumes, so ``run`` and ``batch`` pick up a killed fit where its checkpoint
 left it; ``run --fresh`` starts over), ``checkpoint`` (its path),
 ``refine_poses`` (optimise the training views' poses too; the refined poses
 are written beside the output as a COLMAP text model, see
-:func:`refined_poses_path`).
+:func:`refined_poses_path`), ``tolerance_stops`` (keep the smallest cut-down model
+whose held-out error is within this many stops of the full fit's:
+:mod:`gaslight_usd.fit.smallest`; what it chose is in the report's metadata).
 """
 
 from __future__ import annotations
@@ -92,6 +94,16 @@ def fit(ctx: StageContext) -> StageResult:
         },
         "fit_metrics": result.metrics,
     }
+    choice = None
+    if opts.get("tolerance_stops") is not None:
+        from gaslight_usd.fit.smallest import choose_for_fit
+
+        choice, smaller = choose_for_fit(data, result, float(opts["tolerance_stops"]),
+                                         cfg.background)
+        result.scene = smaller
+        metadata["model_choice"] = {k: v for k, v in choice.as_dict().items()
+                                    if k != "candidates"}
+        ctx.progress.message(choice.sentence())
     result.scene.metadata = metadata
     m = result.metrics
     ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
@@ -110,8 +122,9 @@ def fit(ctx: StageContext) -> StageResult:
     return StageResult(
         metadata={"colour_space": data.colour_space, "preset": name,
                   "exposure_scale": metadata["exposure_scale"], "frame": data.model.frame,
-                  "history": result.history, "left_out_views": data.left_out, **extra},
-        counts={"splats": m["splats"], "views": len(data.names),
+                  "history": result.history, "left_out_views": data.left_out, **extra,
+                  **({"model_choice": choice.as_dict()} if choice else {})},
+        counts={"splats": result.scene.count, "views": len(data.names),
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
