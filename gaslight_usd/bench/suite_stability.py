@@ -209,7 +209,7 @@ def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         entry = out.setdefault(key, {"method": key[0], "preset": key[1], "perturbation": key[2],
                                      "curve": [], "breaks_at": None, "silent": False,
                                      "told_at_break": ""})
-        entry["curve"].append(f"{r['strength']:g}:{r['drop_db']:+.1f}dB"
+        entry["curve"].append(f"{r['strength']:g}:{-r['drop_db']:+.1f}dB"
                               if math.isfinite(r["drop_db"]) else f"{r['strength']:g}:fail")
         if r["broken"] and entry["breaks_at"] is None:
             entry["breaks_at"] = r["strength"]
