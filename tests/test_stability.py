@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import run_cli, write_jpeg
 
 from gaslight_usd.bench.perturb import box_blur_rows, make_capture, sees
 from gaslight_usd.bench.suite_chain import scene_lights
@@ -16,6 +17,7 @@ from gaslight_usd.errors import GaslightError
 from gaslight_usd.imageio import read_image
 from gaslight_usd.locate import example_room
 from gaslight_usd.poses import read_poses
+from gaslight_usd.uplift.checks import clipped_photos_warning
 
 
 def test_box_blur_keeps_the_mean_and_spreads_a_point():
@@ -80,3 +82,23 @@ def test_told_lines_and_the_sweep():
     assert set(sweep({})) >= {"photos", "noise", "pose_noise", "light_one_view"}
     with pytest.raises(GaslightError, match="unknown perturbation"):
         sweep({"perturbations": ["rain"]})
+
+
+# -- regressions: what the sweep found breaking silently, now told -------------------------
+@pytest.mark.parametrize("method", ["linear", "recursive"])
+def test_a_mostly_clipped_photo_is_named(method, photo_folder, tmp_path):
+    white = np.full((48, 64, 3), 255, np.uint8)
+    write_jpeg(photo_folder / "shot_white.jpg", white, exposure_time=1 / 30, f_number=4.0,
+               iso=100)
+    res = run_cli("hdr", str(photo_folder), "-o", str(tmp_path / "hdr"), "--method", method)
+    assert res.returncode == 0, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if "mostly clipped" in ln]
+    assert len(lines) == 1
+    assert "1 of 4 photo(s)" in lines[0] and "shot_white.jpg (100%)" in lines[0]
+    assert "shot_0.jpg" not in lines[0]  # its 8x8 clipped corner is 2% of it
+
+
+def test_clipped_photos_warning_threshold():
+    assert clipped_photos_warning(["a", "b"], [0.5, 0.2]) is None
+    text = clipped_photos_warning(["a", "b"], [0.51, 0.9])
+    assert text.startswith("2 of 2 photo(s) are mostly clipped") and "b (90%)" in text
