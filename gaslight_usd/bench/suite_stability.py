@@ -208,7 +208,8 @@ def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         key = run_key[:3]
         entry = out.setdefault(key, {"method": key[0], "preset": key[1], "perturbation": key[2],
                                      "curve": [], "breaks_at": None, "silent": False,
-                                     "told_at_break": ""})
+                                     "told_at_break": "", "told": []})
+        entry["told"] += [t for t in r["told"].split(" | ") if t and t not in entry["told"]]
         entry["curve"].append(f"{r['strength']:g}:{-r['drop_db']:+.1f}dB"
                               if math.isfinite(r["drop_db"]) else f"{r['strength']:g}:fail")
         if r["broken"] and entry["breaks_at"] is None:
@@ -217,6 +218,7 @@ def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
             entry["told_at_break"] = r["told"][:200]
     for entry in out.values():
         entry["curve"] = " ".join(entry["curve"])
+        entry["told"] = " | ".join(entry["told"])[:300] or "nothing"
         if entry["breaks_at"] is None:
             entry["breaks_at"] = "none"
     return list(out.values())
