@@ -65,7 +65,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "light_one_view, no_clip, clipped_frames, pose_noise)")
     p.add_argument("--full", action="store_true",
                    help="stability suite: every strength of each perturbation, not the "
-                        "default few")
+                        "default few; stability and budget suites: fits with the preset as "
+                        "it is (not shortened)")
     p.add_argument("--from", dest="sources", action="append", type=Path, default=[],
                    metavar="DIR", help="tradeoff suite: folders of earlier bench results "
                                        "(<suite>.json) to chart (repeatable; default: "
