@@ -94,6 +94,11 @@ def fit(ctx: StageContext) -> StageResult:
         },
         "fit_metrics": result.metrics,
     }
+    if not result.metrics["held_out_views"]:
+        ctx.progress.message(
+            f"warning: only {len(data.names)} views, none held out: the fit could not tell "
+            "when more splats stopped helping, and its errors (and --tolerance-stops) are "
+            "measured on the views it was fitted to; shoot more photos")
     choice = None
     if opts.get("tolerance_stops") is not None:
         from gaslight_usd.fit.smallest import choose_for_fit
@@ -103,7 +108,7 @@ def fit(ctx: StageContext) -> StageResult:
         result.scene = smaller
         metadata["model_choice"] = {k: v for k, v in choice.as_dict().items()
                                     if k != "candidates"}
-        ctx.progress.message(choice.sentence())
+        ctx.progress.message(("" if choice.held_out else "warning: ") + choice.sentence())
     result.scene.metadata = metadata
     m = result.metrics
     ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "

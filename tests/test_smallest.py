@@ -89,3 +89,29 @@ def test_run_rejects_a_negative_tolerance(tmp_path, posed_hdr_scene, capsys):
     assert "expected a number of stops >= 0, got '-1'" in err
     assert len(err.strip().splitlines()[-1]) < 200
     assert not (tmp_path / "o").exists()
+
+
+def test_a_fit_with_no_held_out_view_says_so(tmp_path, posed_hdr_scene):
+    """Found by the stability sweep (4 photos: nothing told): with fewer than 8 views the
+    fit holds none out; the run now warns, and the model choice says what it scored on."""
+    from gaslight_usd.poses import read_poses, write_poses
+
+    model = read_poses(posed_hdr_scene / "sparse")
+    keep = model.cameras[:4]
+    hdr = tmp_path / "hdr"
+    hdr.mkdir()
+    for cam in keep:
+        name = cam.name.rsplit(".", 1)[0] + ".exr"
+        (hdr / name).symlink_to(posed_hdr_scene / "hdr" / name)
+    write_poses(tmp_path / "sparse", type(model)(cameras=keep, points=model.points))
+    out = tmp_path / "out"
+    res = run_cli("run", str(hdr), "--poses", str(tmp_path / "sparse"), "-o", str(out),
+                  "--to", "splats", "--budget", "600", "--iterations", "30",
+                  "--tolerance-stops", "0.5")
+    assert res.returncode == 0, res.stderr
+    assert "warning: only 4 views, none held out" in res.stderr
+    assert "warning: tolerance 0.5 stops (training views: the fit held none out)" in res.stderr
+    report = json.loads((out / "report.json").read_text())
+    choice = next(s for s in report["stages"] if s["metadata"].get("model_choice"))[
+        "metadata"]["model_choice"]
+    assert choice["scored_on_held_out"] is False and choice["scored_on"] == ["view_00"]

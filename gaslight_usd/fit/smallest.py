@@ -81,10 +81,15 @@ class ModelChoice:
                 "full_bytes": self.full_bytes,
                 "full_error_stops": round(self.full_error_stops, 4),
                 "tolerance_stops": self.tolerance_stops, "scored_on": self.views,
+                "scored_on_held_out": self.held_out,
                 "candidates": self.candidates}
 
+    held_out: bool = True
+    """Whether ``views`` are held-out views (False: the fit held none out; training views)."""
+
     def sentence(self) -> str:
-        return (f"tolerance {self.tolerance_stops:g} stops: kept {self.splats} of "
+        where = "" if self.held_out else " (training views: the fit held none out)"
+        return (f"tolerance {self.tolerance_stops:g} stops{where}: kept {self.splats} of "
                 f"{self.full_splats} splats at SH degree {self.sh_degree} (of "
                 f"{self.full_sh_degree}), {self.bytes / max(self.full_bytes, 1):.0%} of the "
                 f"bytes; error {self.error_stops:.3f} stops on {len(self.views)} view(s), "
@@ -157,6 +162,8 @@ def choose_for_fit(data, result, tolerance_stops: float, background: float = 0.0
     cams = result.cameras
     backdrop = int(result.metrics.get("backdrop_splats", 0))
     keep = np.arange(result.scene.count - backdrop, result.scene.count)
-    return choose_smallest(result.scene, [cams[i] for i in rank_views],
-                           [cams[i] for i in views], [data.images[i] for i in views],
-                           tolerance_stops, [names[i] for i in views], background, keep)
+    choice, scene = choose_smallest(result.scene, [cams[i] for i in rank_views],
+                                    [cams[i] for i in views], [data.images[i] for i in views],
+                                    tolerance_stops, [names[i] for i in views], background, keep)
+    choice.held_out = bool(held)
+    return choice, scene
