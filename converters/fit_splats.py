@@ -99,6 +99,10 @@ def fit(ctx: StageContext) -> StageResult:
             f"warning: only {len(data.names)} views, none held out: the fit could not tell "
             "when more splats stopped helping, and its errors (and --tolerance-stops) are "
             "measured on the views it was fitted to; shoot more photos")
+    result.scene.metadata = metadata
+    m = result.metrics
+    ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
+                         f"{m['backdrop_splats']} backdrop splats added after the last step")
     choice = None
     if opts.get("tolerance_stops") is not None:
         from gaslight_usd.fit.smallest import choose_for_fit
@@ -106,13 +110,10 @@ def fit(ctx: StageContext) -> StageResult:
         choice, smaller = choose_for_fit(data, result, float(opts["tolerance_stops"]),
                                          cfg.background)
         result.scene = smaller
+        smaller.metadata = metadata
         metadata["model_choice"] = {k: v for k, v in choice.as_dict().items()
                                     if k != "candidates"}
         ctx.progress.message(("" if choice.held_out else "warning: ") + choice.sentence())
-    result.scene.metadata = metadata
-    m = result.metrics
-    ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
-                         f"{m['backdrop_splats']} backdrop splats added after the last step")
     write_ply(ctx.output, result.scene)
     extra = {}
     if cfg.refine_poses:
