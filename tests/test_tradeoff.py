@@ -112,3 +112,15 @@ def test_committed_page_matches_a_fresh_build():
     assert rebuilt == page.read_text()
     assert np.all([(s / "stability.json").exists() or (s / "budget.json").exists()
                    for s in sources])
+
+
+def test_reports_of_one_suite_are_joined(reports, tmp_path):
+    more = tmp_path / "more"
+    run_suite(_suite("alpha", [{"method": "other", "setting": "z", "seconds": 0.2,
+                                "psnr": 25.0}]), {}, more)
+    (more / "alpha.json").rename(more / "alpha-other.json")
+    joined = {r["suite"]: r for r in load_reports([reports, more])}
+    labels = [p["label"] for p in points_of(joined["alpha"])]
+    assert labels == ["fast one · a", "slow good · b", "slow bad · c", "oracle", "other · z"]
+    fronts = {p["label"]: p["front"] for p in points_of(joined["alpha"])}
+    assert fronts["other · z"] and not fronts["fast one · a"]  # 0.2 s at 25 dB beats it

@@ -30,17 +30,26 @@ REFERENCE_COLOUR = "#999999"
 
 def load_reports(folders: list[Path]) -> list[dict[str, Any]]:
     """Every bench report (a JSON with ``suite`` and ``medians``) in ``folders``, not the
-    tradeoff page's own, sorted by suite name."""
-    reports = {}
+    tradeoff page's own, sorted by suite name. Reports of one suite (runs of other methods
+    or presets, e.g. ``stability.json`` and ``stability-linear.json``) are charted
+    together: their medians, summaries and notes joined in file order."""
+    reports: dict[str, dict[str, Any]] = {}
     for folder in folders:
         for path in sorted(Path(folder).glob("*.json")):
             try:
                 data = json.loads(path.read_text())
             except (OSError, json.JSONDecodeError):
                 continue
-            if isinstance(data, dict) and "suite" in data and "medians" in data \
-                    and data["suite"] != "tradeoff":
-                reports[data["suite"]] = data
+            if not (isinstance(data, dict) and "suite" in data and "medians" in data) \
+                    or data["suite"] == "tradeoff":
+                continue
+            seen = reports.get(data["suite"])
+            if seen is None:
+                reports[data["suite"]] = dict(data)
+                continue
+            seen["medians"] = [*seen["medians"], *data["medians"]]
+            seen["summaries"] = [*(seen.get("summaries") or []), *(data.get("summaries") or [])]
+            seen["notes"] = list(dict.fromkeys([*seen.get("notes", []), *data.get("notes", [])]))
     return [reports[k] for k in sorted(reports)]
 
 
