@@ -1,7 +1,8 @@
 """HDR views + poses -> HDR Gaussian splats (PLY), fitted on the CPU or a CUDA GPU.
 
 Options (step "fit"): ``preset`` (fast|balanced|best), ``budget`` (most
-splats), ``iterations``, ``seed`` (default: the run's), ``device``, ``resume``
+splats), ``iterations``, ``working_size`` (the views' long side in the fit; the bench's
+shortened fits), ``seed`` (default: the run's), ``device``, ``resume``
 (continue from the checkpoint beside the output; default: whether the run
 resumes, so ``run`` and ``batch`` pick up a killed fit where its checkpoint
 left it; ``run --fresh`` starts over), ``checkpoint`` (its path),
@@ -63,6 +64,7 @@ def fit(ctx: StageContext) -> StageResult:
     if name not in PRESETS:
         raise InputError(f"unknown fit preset {name!r}; choose from {', '.join(PRESETS)}")
     cfg = preset(name).updated(budget=opts.get("budget"), iterations=opts.get("iterations"),
+                               working_size=opts.get("working_size"),
                                refine_poses=bool(opts.get("refine_poses")))
     seed = int(opts.get("seed") if opts.get("seed") is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path

@@ -5,8 +5,9 @@ the photos are re-made from the true radiance with one thing a real capture gets
 wrong (:mod:`.perturb`: fewer photos, sensor noise, JPEG quality, white balance and
 exposure offsets, motion blur, a light half out of frame or seen once, photos with
 nothing clipped, fully clipped frames, pose noise), at rising strengths. The chain then
-runs as in the chain bench (true poses unless the perturbation moves them, uplift,
-fit) and is scored at the probes against the path-traced truth.
+runs as ``gaslight2usd run`` runs it (its uplift and fit converters, so their
+warnings are what the user reads; true poses unless the perturbation moves them) and
+is scored at the probes against the path-traced truth.
 
 **Breaks** is defined as: the run fails, or its median irradiance PSNR over the probes
 is more than :data:`BREAK_DB` dB below the unperturbed run of the same method and
@@ -39,7 +40,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import GaslightError
-from ..fit import fit_splats, load_fit_data, preset
 from ..progress import Progress
 from .perturb import KINDS, make_capture
 from .suite_chain import absolute_scale, probe_rows, scene_dir, scene_lights
@@ -100,29 +100,36 @@ def finite_scene(scene) -> bool:
 
 def run_case(folder: Path, capture, method: str, preset_name: str, work: Path,
              seed: int, full: bool = False) -> tuple[list[dict[str, Any]], dict[str, Any]]:
-    """The chain on one capture: (probe rows, run facts: seconds, told, error, finite)."""
+    """The chain on one capture, as ``gaslight2usd run`` runs it (uplift and fit
+    converters, so every warning they print is captured): (probe rows, run facts:
+    seconds, told, error, finite)."""
+    from ..imageio import read_image
     from ..kinds import Kind
     from ..pipeline import Job, run_job
+    from ..ply import read_ply
 
     stream = io.StringIO()
     progress = Progress("case", stream=stream)
     facts: dict[str, Any] = {"error": None, "finite": True}
     info = json.loads((folder / "scene.json").read_text())
+    fit_opts = {"preset": preset_name, "seed": seed, **({} if full else FIT_STEPS)}
     t0 = time.perf_counter()
     rows: list[dict[str, Any]] = []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            job = Job(inputs=[capture.photos], out_dir=work, targets=(Kind.HDR_VIEWS,),
-                      choose={"uplift": METHODS[method]}, resume=False)
-            hdr = run_job(job, progress=progress)[Kind.HDR_VIEWS].path
-            cfg = preset(preset_name) if full else preset(preset_name).updated(**FIT_STEPS)
-            data = load_fit_data(hdr, capture.poses, working_size=cfg.working_size)
-            result = fit_splats(data, cfg, seed=seed, progress=progress)
+            job = Job(inputs=[capture.photos, capture.poses], out_dir=work,
+                      targets=(Kind.SPLATS,), choose={"uplift": METHODS[method]},
+                      options={"fit": fit_opts}, resume=False)
+            found = run_job(job, progress=progress)
             facts["seconds"] = time.perf_counter() - t0
-            facts["finite"] = finite_scene(result.scene)
-            scale = absolute_scale(data.attributes, info["exposure"])
-            rows = probe_rows(result.scene, folder, scale, relight=False)
+            scene = read_ply(found[Kind.SPLATS].path)
+            facts["finite"] = finite_scene(scene)
+            first = sorted((work / "hdr").glob("*.exr"))[0]
+            attrs = {k: v for k, v in read_image(first).metadata.items()
+                     if k.startswith("gaslight:")}
+            scale = absolute_scale(attrs, info["exposure"])
+            rows = probe_rows(scene, folder, scale, relight=False)
         except (GaslightError, ValueError, RuntimeError, OSError) as exc:
             facts["error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
             facts["seconds"] = time.perf_counter() - t0
