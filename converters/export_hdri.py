@@ -1,9 +1,7 @@
 """Splats -> HDRIs: a folder with one lat-long (and cube) EXR per probe point.
 
-Options: ``at`` (one (x, y, z) or a list of them; default: the cameras' median
-point moved to free space, :func:`gaslight_usd.probe.default_probe`), ``size``
-(lat-long width, default 2048), ``cube``, ``faces``, ``tx``, ``output_space``
-(an OCIO name; default the working space).
+Options: :class:`~gaslight_usd.export_options.HdriOptions` (``at`` None: the
+cameras' median point moved to free space, :func:`gaslight_usd.probe.default_probe`).
 """
 
 from __future__ import annotations
@@ -12,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import InputError
+from gaslight_usd.export_options import HdriOptions
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import read_ply
 from gaslight_usd.probe_check import outside_warning
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
 
 
 def probe_points(at, scene) -> list[tuple[float, float, float]]:
@@ -42,32 +40,33 @@ def probe_choices(at, scene) -> list[tuple[tuple[float, float, float], str]]:
 
 def export_hdri_stage(ctx: StageContext) -> StageResult:
     from gaslight_usd import colour
-    from gaslight_usd.hdri import DEFAULT_WIDTH, probe_output_paths, render_probe
+    from gaslight_usd.hdri import probe_output_paths, render_probe
 
-    o = ctx.options
+    o = options_from(HdriOptions, ctx.options)
     src = ctx.input(Kind.SPLATS).path
     scene = read_ply(src)
-    choices = probe_choices(o.get("at"), scene)
+    choices = probe_choices(o.at, scene)
     points = [p for p, _ in choices]
     out = Path(ctx.output)
-    paths = o.get("paths") or probe_output_paths(out, len(points))
+    paths = o.paths or probe_output_paths(out, len(points))
     s = ctx.settings
-    out_space = o.get("output_space")
+    out_space = o.output_space
     if out_space:
         out_space = colour.resolve_space(out_space, s.ocio_config)
     written, warnings = [], []
-    for pos in points if o.get("at") else []:
+    for pos in points if o.at else []:
         warning = outside_warning(pos, scene.positions)
         if warning:
             warnings.append(warning)
             ctx.progress.message(f"warning: {warning}")
     for i, ((pos, how), path) in enumerate(zip(choices, paths, strict=True), start=1):
-        files = render_probe(scene, pos, path, width=int(o.get("size") or DEFAULT_WIDTH),
-                             cube=bool(o.get("cube")), faces=bool(o.get("faces")),
-                             tx=bool(o.get("tx")), working_space=s.working_space,
+        files = render_probe(scene, pos, path, width=int(o.size),
+                             cube=bool(o.cube), faces=bool(o.faces),
+                             tx=bool(o.tx), working_space=s.working_space,
                              output_space=out_space, config_uri=s.ocio_config,
                              attributes={"gaslight:source": str(src),
-                                         "gaslight:probeChoice": how}, device=s.device)
+                                         "gaslight:probeChoice": how},
+                             device=o.device or s.device)
         written.append({"position": list(pos), "chosen": how,
                         "files": [str(p) for p in files.all()]})
         if how.startswith("default"):
@@ -89,5 +88,6 @@ CONVERTERS = [
         output=Kind.HDRI,
         run=export_hdri_stage,
         description="render lat-long (and cube) EXR HDRIs from the splats at probe points",
+        options=HdriOptions,
     ),
 ]

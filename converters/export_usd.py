@@ -1,11 +1,6 @@
 """Splats -> OpenUSD: ParticleField splats, emissive instancer, UsdLux rig.
 
-Options (``ctx.options``): ``as`` (list of particlefield, instancer, rig),
-``half``, ``emit_threshold`` (default: the lights finder's emitters),
-``palette_tolerance``, ``rig_tolerance``, ``default_variant``,
-``non_emitters`` (drop | diffuse), ``at`` (probe point for the rig),
-``dome_width``, ``max_layer_bytes``, ``usdz`` (also write ``<stem>.usdz``),
-``display_ply`` (also write a display-referred PLY there).
+Options: :class:`~gaslight_usd.export_options.UsdExportOptions`.
 """
 
 from __future__ import annotations
@@ -13,11 +8,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import GaslightError
+from gaslight_usd.export_options import UsdExportOptions
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import read_ply
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
 
 
 def relative_source(source: Path, folder: Path) -> str:
@@ -36,28 +31,26 @@ def relative_source(source: Path, folder: Path) -> str:
 def export_usd_stage(ctx: StageContext) -> StageResult:
     from gaslight_usd.usd.scene import VARIANTS, ExportOptions, export_usd
 
-    o = ctx.options
+    o = options_from(UsdExportOptions, ctx.options)
     src = ctx.input(Kind.SPLATS).path
     scene = read_ply(src)
     out = Path(ctx.output)
     if out.suffix.lower() not in (".usda", ".usd", ".usdc"):
         out = out / Kind.USD.default_name
-    at = o.get("at")
     opts = ExportOptions(
-        variants=tuple(o.get("as") or VARIANTS),
-        half=bool(o.get("half", False)),
-        emit_threshold=(None if o.get("emit_threshold") is None
-                        else float(o["emit_threshold"])),
-        palette_tolerance=float(o.get("palette_tolerance", 0.10)),
-        non_emitters=str(o.get("non_emitters", "drop")),
-        rig_tolerance=float(o.get("rig_tolerance", 0.05)),
-        probe=None if at is None else tuple(float(v) for v in at),
-        dome_width=int(o.get("dome_width", 1024)),
-        max_layer_bytes=int(o.get("max_layer_bytes") or ExportOptions.max_layer_bytes),
+        variants=tuple(o.forms or VARIANTS),
+        half=bool(o.half),
+        emit_threshold=None if o.emit_threshold is None else float(o.emit_threshold),
+        palette_tolerance=float(o.palette_tolerance),
+        non_emitters=str(o.non_emitters),
+        rig_tolerance=float(o.rig_tolerance),
+        probe=None if o.at is None else tuple(float(v) for v in o.at),
+        dome_width=int(o.dome_width),
+        max_layer_bytes=int(o.max_layer_bytes or ExportOptions.max_layer_bytes),
         working_space=ctx.settings.working_space,
         ocio_config=ctx.settings.ocio_config,
         seed=ctx.settings.seed,
-        default_variant=o.get("default_variant"),
+        default_variant=o.default_variant,
     )
     ctx.progress.message(f"exporting {scene.count} splats as {', '.join(opts.variants)}")
     report = export_usd(scene, out, opts, source=relative_source(src, out.parent),
@@ -75,7 +68,7 @@ def export_usd_stage(ctx: StageContext) -> StageResult:
     if report.errors:
         raise GaslightError("USD validation failed: " + "; ".join(map(str, report.errors[:3])),
                             out)
-    if o.get("usdz"):
+    if o.usdz:
         from gaslight_usd.usd.usdz import package_usdz, validate_usdz
 
         usdz = package_usdz(out, out.with_suffix(".usdz"))
@@ -86,13 +79,13 @@ def export_usd_stage(ctx: StageContext) -> StageResult:
         files.append(str(usdz))
         metrics["usdz"] = {"path": str(usdz), "bytes": usdz.stat().st_size,
                            "validation_errors": 0}
-    if o.get("display_ply"):
+    if o.display_ply:
         from gaslight_usd.ply_display import write_display_ply
 
-        ev = write_display_ply(o["display_ply"], scene, o.get("display_exposure"),
+        ev = write_display_ply(o.display_ply, scene, o.display_exposure,
                                ctx.settings.working_space, ctx.settings.ocio_config)
-        files.append(str(o["display_ply"]))
-        metrics["display_ply"] = {"path": str(o["display_ply"]), "exposure_ev": ev}
+        files.append(str(o.display_ply))
+        metrics["display_ply"] = {"path": str(o.display_ply), "exposure_ev": ev}
     metrics["validation"] = {"errors": 0, "warnings": len(report.findings)}
     return StageResult(
         metadata={"root": str(out), "files": files, "colour_space": ctx.settings.working_space},
@@ -109,5 +102,6 @@ CONVERTERS = [
         output=Kind.USD,
         run=export_usd_stage,
         description="write OpenUSD: ParticleField splats, emissive instancer, UsdLux rig",
+        options=UsdExportOptions,
     ),
 ]

@@ -1,16 +1,6 @@
 """HDR views + poses -> HDR Gaussian splats (PLY), fitted on the CPU or a CUDA GPU.
 
-Options (step "fit"): ``preset`` (fast|balanced|best), ``budget`` (most
-splats), ``iterations``, ``working_size`` (the views' long side in the fit; the bench's
-shortened fits), ``seed`` (default: the run's), ``device``, ``resume``
-(continue from the checkpoint beside the output; default: whether the run
-resumes, so ``run`` and ``batch`` pick up a killed fit where its checkpoint
-left it; ``run --fresh`` starts over), ``checkpoint`` (its path),
-``refine_poses`` (optimise the training views' poses too; the refined poses
-are written beside the output as a COLMAP text model, see
-:func:`refined_poses_path`), ``tolerance_stops`` (keep the smallest cut-down model
-whose held-out error is within this many stops of the full fit's:
-:mod:`gaslight_usd.fit.smallest`; what it chose is in the report's metadata).
+Options (step "fit"): :class:`FitOptions`.
 """
 
 from __future__ import annotations
@@ -18,13 +8,43 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.errors import InputError
 from gaslight_usd.fit import PRESETS, fit_splats, load_fit_data, preset
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import write_ply
 from gaslight_usd.provenance import tool_version
-from gaslight_usd.registry import Converter
+from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
+
+
+@dataclasses.dataclass
+class FitOptions:
+    """The ``fit.splats`` options; None means the preset's or the run's value."""
+
+    preset: str = "fast"
+    """fast | balanced | best (:data:`gaslight_usd.fit.PRESETS`)."""
+    budget: int | None = None
+    """Most splats."""
+    iterations: int | None = None
+    seed: int | None = None
+    """Default: the run's."""
+    device: str | None = None
+    """Default: the run's."""
+    resume: bool | None = None
+    """Continue from the checkpoint beside the output; default: whether the run
+    resumes, so ``run`` and ``batch`` pick up a killed fit where its checkpoint left
+    it (``run --fresh`` starts over)."""
+    checkpoint: str | None = None
+    """The checkpoint's path (default :func:`checkpoint_path`)."""
+    keep_checkpoint: bool = False
+    refine_poses: bool = False
+    """Optimise the training views' poses too; the refined poses are written beside
+    the output as a COLMAP text model (:func:`refined_poses_path`)."""
+    working_size: int | None = None
+    """The views' long side in the fit (default: the preset's; the bench's shortened fits)."""
+    tolerance_stops: float | None = None
+    """Keep the smallest cut-down model whose held-out error is within this many stops
+    of the full fit's (:mod:`gaslight_usd.fit.smallest`); what it chose is in the
+    report's metadata."""
 
 
 def checkpoint_path(output: Path) -> Path:
@@ -59,23 +79,23 @@ def length_unit(frame: dict) -> str:
 
 
 def fit(ctx: StageContext) -> StageResult:
-    opts = ctx.options
-    name = opts.get("preset") or "fast"
+    opts = options_from(FitOptions, ctx.options)
+    name = opts.preset
     if name not in PRESETS:
         raise InputError(f"unknown fit preset {name!r}; choose from {', '.join(PRESETS)}")
-    cfg = preset(name).updated(budget=opts.get("budget"), iterations=opts.get("iterations"),
-                               working_size=opts.get("working_size"),
-                               refine_poses=bool(opts.get("refine_poses")))
-    seed = int(opts.get("seed") if opts.get("seed") is not None else ctx.settings.seed)
+    cfg = preset(name).updated(budget=opts.budget, iterations=opts.iterations,
+                               working_size=opts.working_size,
+                               refine_poses=bool(opts.refine_poses))
+    seed = int(opts.seed if opts.seed is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
     data = load_fit_data(hdr_dir, poses, working_size=cfg.working_size)
     if data.left_out:
         ctx.progress.message(f"warning: {len(data.left_out)} HDR view(s) have no pose and are "
                              f"left out of the fit: {', '.join(data.left_out)}")
-    ckpt = Path(opts.get("checkpoint") or checkpoint_path(ctx.output))
+    ckpt = Path(opts.checkpoint or checkpoint_path(ctx.output))
     result = fit_splats(data, cfg, seed=seed, progress=ctx.progress, checkpoint=ckpt,
-                        resume=bool(opts.get("resume", ctx.resume)),
-                        device=opts.get("device") or ctx.settings.device)
+                        resume=bool(ctx.resume if opts.resume is None else opts.resume),
+                        device=opts.device or ctx.settings.device)
     attrs = data.attributes
     metadata = {
         "colour_space": data.colour_space,
@@ -106,10 +126,10 @@ def fit(ctx: StageContext) -> StageResult:
     ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
                          f"{m['backdrop_splats']} backdrop splats added after the last step")
     choice = None
-    if opts.get("tolerance_stops") is not None:
+    if opts.tolerance_stops is not None:
         from gaslight_usd.fit.smallest import choose_for_fit
 
-        choice, smaller = choose_for_fit(data, result, float(opts["tolerance_stops"]),
+        choice, smaller = choose_for_fit(data, result, float(opts.tolerance_stops),
                                          cfg.background)
         result.scene = smaller
         smaller.metadata = metadata
@@ -124,7 +144,7 @@ def fit(ctx: StageContext) -> StageResult:
         refined = write_poses(refined_poses_path(ctx.output),
                               _refined_model(data, result.cameras))
         extra = {"refined_poses": str(refined), **result.metrics["pose_refinement"]}
-    if not opts.get("keep_checkpoint"):
+    if not opts.keep_checkpoint:
         ckpt.unlink(missing_ok=True)
     m = result.metrics
     return StageResult(
@@ -148,5 +168,6 @@ CONVERTERS = [
         output=Kind.SPLATS,
         run=fit,
         description="fit HDR Gaussian splats to the posed HDR views (linear HDR, CPU or CUDA)",
+        options=FitOptions,
     ),
 ]

@@ -1,45 +1,55 @@
 """LDR photos -> camera poses and sparse points by structure from motion (pycolmap).
 
-Options (the ``poses`` step's options in a chain run; all optional):
-``matcher`` (exhaustive | sequential), ``camera_model``, ``single_camera``,
-``min_registered`` (share, default 0.5), ``panorama`` (auto | on | off),
-``scale`` (metres per SfM unit), ``scale_from`` ("IMG_A,IMG_B,METRES") or
-``camera_height`` (the photos' median height above the floor, metres),
-``binary`` (write .bin instead of .txt), ``max_image_size``, ``verbose``.
+Options: :class:`PosesOptions`, the SfM's own
+(:class:`~gaslight_usd.poses.sfm.SfmOptions`: ``matcher``, ``camera_model``,
+``single_camera``, ``min_registered``, ``panorama``, ``max_image_size``, ``verbose``...)
+plus the frame's scale (``scale``, ``scale_from`` or ``camera_height``) and
+``binary``.
 The model is moved to the project's SfM frame (+Y up, the floor at y = 0, origin
-under the cameras; see gaslight_usd.frame) and written with its ``frame.json``.
+under the cameras; see gaslight_usd.poses.frame) and written with its ``frame.json``.
 """
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import dataclass, fields
 
-from gaslight_usd.chain import StageContext, StageResult
-from gaslight_usd.colmap import write_model
-from gaslight_usd.frame import sfm_frame
 from gaslight_usd.kinds import Kind
-from gaslight_usd.registry import Converter
-from gaslight_usd.sfm import SfmOptions, solve_poses
+from gaslight_usd.poses.colmap import write_model
+from gaslight_usd.poses.frame import sfm_frame
+from gaslight_usd.poses.sfm import SfmOptions, solve_poses
+from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
 
-_SFM_KEYS = {f.name for f in fields(SfmOptions)}
+
+@dataclass
+class PosesOptions(SfmOptions):
+    """The ``poses.sfm`` options: the SfM's, and how the model is scaled and written."""
+
+    scale: float | None = None
+    """Metres per SfM unit."""
+    scale_from: str | None = None
+    """``IMG_A,IMG_B,METRES``: a known distance between two photos' camera centres."""
+    camera_height: float | None = None
+    """The photos' median height above the floor, metres."""
+    binary: bool = False
+    """Write .bin files instead of .txt."""
 
 
 def solve(ctx: StageContext) -> StageResult:
-    opts = ctx.options
-    sfm_opts = SfmOptions(**{k: v for k, v in opts.items() if k in _SFM_KEYS and v is not None})
-    if "seed" not in opts:
+    opts = options_from(PosesOptions, ctx.options)
+    sfm_opts = SfmOptions(**{f.name: getattr(opts, f.name) for f in fields(SfmOptions)})
+    if "seed" not in ctx.options:
         sfm_opts.seed = ctx.settings.seed
     result = solve_poses(ctx.input(Kind.LDR_VIEWS).path, sfm_opts, ctx.progress)
     for warning in result.warnings:
         ctx.progress.message(f"warning: {warning}")
-    model = sfm_frame(result.model, scale=opts.get("scale"), scale_from=opts.get("scale_from"),
-                      camera_height=opts.get("camera_height"))
+    model = sfm_frame(result.model, scale=opts.scale, scale_from=opts.scale_from,
+                      camera_height=opts.camera_height)
     if not model.frame["scale_known"]:
         ctx.progress.message(f"warning: {model.frame['units']}")
     model.frame["sfm"] = {"matcher": sfm_opts.matcher, "camera_model": sfm_opts.camera_model,
                           "registered": len(result.registered), "photos": len(result.photos),
                           "unregistered": result.unregistered}
-    write_model(ctx.output, model, binary=bool(opts.get("binary", False)))
+    write_model(ctx.output, model, binary=bool(opts.binary))
     errors = model.point_errors
     return StageResult(
         metadata={"frame": {k: v for k, v in model.frame.items() if k != "sfm"},
@@ -61,5 +71,6 @@ CONVERTERS = [
         run=solve,
         description="solve camera poses and sparse points from the photos (pycolmap SfM: "
                     "SIFT, matching, incremental mapping)",
+        options=PosesOptions,
     ),
 ]

@@ -17,11 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from gaslight_usd.chain import StageContext, StageResult
+from gaslight_usd.colour import CLIP_LEVEL
 from gaslight_usd.errors import InputError
 from gaslight_usd.kinds import Kind
-from gaslight_usd.registry import Converter
+from gaslight_usd.poses.views import load_views, write_hdr_view
+from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
 from gaslight_usd.uplift.bracket import (
+    BracketOptions,
     check_bracket,
     find_brackets,
     group_views,
@@ -29,16 +31,15 @@ from gaslight_usd.uplift.bracket import (
     recover_response,
 )
 from gaslight_usd.uplift.pipeline import transform_for, write_stack
-from gaslight_usd.views import CLIP_LEVEL, load_views, write_hdr_view
 
 
 def merge(ctx: StageContext) -> StageResult:
     s = ctx.settings
+    opts = options_from(BracketOptions, ctx.options)
     folder = ctx.input(Kind.LDR_VIEWS).path
-    group_file = ctx.options.get("group_file")
-    group_file = Path(group_file) if group_file else None
+    group_file = Path(opts.group_file) if opts.group_file else None
     views = load_views(folder, s.input_space, s.working_space, s.ocio_config,
-                       int(ctx.options.get("max_size") or 0))
+                       int(opts.max_size))
     grouping = group_views(views, group_file)
     brackets = grouping.brackets
     ctx.progress.message(grouping.lines()[0])
@@ -49,7 +50,7 @@ def merge(ctx: StageContext) -> StageResult:
                          "exposure, or EXIF exposure times are missing); use --method "
                          "recursive, or give --group-file", group_file or folder)
     transform = transform_for(s.input_space, s.working_space, s.ocio_config)
-    response = ctx.options.get("response") or "ocio"
+    response = opts.response
     ctx.output.mkdir(parents=True, exist_ok=True)
     merged_count, spans = 0, []
     for i, bracket in enumerate(brackets, start=1):
@@ -60,7 +61,7 @@ def merge(ctx: StageContext) -> StageResult:
         curve = transform.curve
         if response == "debevec" and bracket.is_bracket:
             curve = recover_response(stack, evs)
-        result = merge_bracket(stack, evs, curve, align=ctx.options.get("align", True))
+        result = merge_bracket(stack, evs, curve, align=opts.align)
         ref = bracket.views[result.reference]
         radiance = transform.to_working(result.linear) / np.float32(ref.exposure_ratio)
         darkest = stack[int(np.argmin(evs))]
@@ -79,7 +80,7 @@ def merge(ctx: StageContext) -> StageResult:
         write_hdr_view(ctx.output, ref, np.maximum(radiance, 0), s.working_space, "bracket",
                        attrs, s.ocio_config,
                        clipped_by=bracket.views[int(np.argmin(bracket.evs))])
-        if ctx.options.get("save_stacks"):
+        if opts.save_stacks:
             write_stack(ctx.output / "stacks", ref.name, stack, result.evs)
         merged_count += int(bracket.is_bracket)
         spans.append(max(result.evs) - min(result.evs))
@@ -94,8 +95,8 @@ def merge(ctx: StageContext) -> StageResult:
 
 def no_brackets(inputs: dict) -> str | None:
     """The reason this converter does not apply (None when brackets are present)."""
-    from gaslight_usd.chain import Settings
     from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
+    from gaslight_usd.registry import Settings
 
     s = Settings.resolved()
     found = find_brackets(list_images(inputs[Kind.LDR_VIEWS].path, LDR_EXTENSIONS),
@@ -113,5 +114,6 @@ CONVERTERS = [
         description="merge exposure brackets (Debevec, aligned)",
         priority=20,
         accepts=no_brackets,
+        options=BracketOptions,
     ),
 ]

@@ -1,17 +1,16 @@
 """LDR views -> HDR views by the paper's recursive exposure prediction.
 
-Options (``ctx.options``, from ``gaslight2usd hdr``): ``predictor`` (default
-``fast``), ``weights``, ``threshold`` (0.9), ``max_steps`` (6), ``brighter``,
-``save_stacks``, ``panorama`` (auto|on|off), ``max_size`` (long side the photos are
-shrunk to first; 0: as shot). Photos are read and uplifted one at a time.
+Options: :class:`~gaslight_usd.uplift.pipeline.UpliftOptions` (``predictor``,
+``weights``, ``threshold``, ``max_steps``, ``brighter``, ``save_stacks``,
+``panorama``, ``max_size``, ``extra``). Photos are read and uplifted one at a time.
 """
 
 from __future__ import annotations
 
-from gaslight_usd.chain import StageContext, StageResult
 from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
 from gaslight_usd.kinds import Kind
-from gaslight_usd.registry import Converter
+from gaslight_usd.poses.views import iter_views, write_hdr_view
+from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
 from gaslight_usd.uplift.checks import clipped_photos_warning
 from gaslight_usd.uplift.pipeline import (
     UpliftOptions,
@@ -19,12 +18,11 @@ from gaslight_usd.uplift.pipeline import (
     transform_for,
     uplift_view,
 )
-from gaslight_usd.views import iter_views, write_hdr_view
 
 
 def uplift(ctx: StageContext) -> StageResult:
     s = ctx.settings
-    opts = UpliftOptions.from_dict(ctx.options)
+    opts = options_from(UpliftOptions, ctx.options)
     predictor = make_predictor(opts)
     photos = list_images(ctx.input(Kind.LDR_VIEWS).path, LDR_EXTENSIONS)
     transform = transform_for(s.input_space, s.working_space, s.ocio_config)
@@ -62,5 +60,6 @@ CONVERTERS = [
         run=uplift,
         description="recursive exposure prediction + Debevec merge (GaSLight 3.1)",
         priority=10,
+        options=UpliftOptions,
     ),
 ]

@@ -16,12 +16,13 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 _EXPORTS = {
-    "chain": ("ChainRun", "Settings", "StageContext", "StageResult", "plan"),
+    "chain": ("ChainRun", "plan"),
     "errors": ("GaslightError", "InputError", "NotBuiltYet"),
     "imageio": ("Image", "read_image", "write_exr"),
     "kinds": ("Artifact", "Kind", "detect_kind"),
     "ply": ("read_ply", "write_ply"),
-    "registry": ("Converter", "Registry", "default_registry"),
+    "registry": ("Converter", "Registry", "Settings", "StageContext", "StageResult",
+                 "default_registry"),
     "splats": ("SplatScene",),
 }
 _WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
@@ -49,10 +50,17 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
-    from .chain import ChainRun, Settings, StageContext, StageResult, plan
+    from .chain import ChainRun, plan
     from .errors import GaslightError, InputError, NotBuiltYet
     from .imageio import Image, read_image, write_exr
     from .kinds import Artifact, Kind, detect_kind
     from .ply import read_ply, write_ply
-    from .registry import Converter, Registry, default_registry
+    from .registry import (
+        Converter,
+        Registry,
+        Settings,
+        StageContext,
+        StageResult,
+        default_registry,
+    )
     from .splats import SplatScene

@@ -48,13 +48,14 @@ from typing import Any, TextIO
 
 from .atomic import PARTIAL_MARK, write_text
 from .batch_summary import BATCH_FILE, LOG_FILE, batch_report, scene_summary, summary_table
-from .chain import ChainRun, Settings
+from .chain import ChainRun
 from .errors import GaslightError, InputError
 from .manifest import ManifestError, Scene, load_manifest
 from .outputs import check_output
 from .pipeline import artifacts_from_paths, run_job, with_working_size
 from .progress import Progress, format_seconds
 from .provenance import tool_version
+from .registry import Settings
 from .stop_signals import claim_stop_signals, stop_on_signals
 
 LOCK_FILE = ".batch.lock"

@@ -8,7 +8,19 @@ Lat-long panoramas follow OpenEXR's ``envmap=latlong``: for column x of W and
 row y of H (pixel centres), longitude = -2 pi ((x + 0.5) / W - 0.5), latitude =
 pi (0.5 - (y + 0.5) / H), direction = (sin(lon) cos(lat), sin(lat),
 cos(lon) cos(lat)). The image centre looks along +Z, a quarter width from the
-left along +X, the top row is +Y. Directions are in the world frame.
+left along +X, the top row is +Y. Directions are in the world frame. An image is
+taken for a lat-long panorama when it is 2:1 within 1 % (:func:`is_latlong`).
+
+Cube maps follow OpenEXR's ``envmap=cube``: faces +X, -X, +Y, -Y, +Z, -Z
+(:data:`CUBE_FACES`), each a 90-degree pinhole camera whose axes (image right,
+image down, view direction) :data:`CUBE_FACE_AXES` gives; every face is a
+right-handed camera like any other.
+
+Sampling is bilinear at continuous pixel coordinates, pixel centres at +0.5
+(:func:`bilinear`); lat-long images wrap in longitude (:func:`sample_latlong`).
+
+Every module takes these from here, so a panorama cut for SfM, uplifted face by
+face or rendered from splats means the same directions everywhere.
 """
 
 from __future__ import annotations
@@ -92,6 +104,68 @@ def direction_to_latlong(directions: np.ndarray, width: int, height: int) -> np.
     x = (0.5 - lon / (2.0 * np.pi)) * width
     y = (0.5 - lat / np.pi) * height
     return np.stack([x, y], axis=-1)
+
+
+LATLONG_ASPECT = 2.0
+"""Width over height of a lat-long panorama."""
+
+
+def is_latlong(width: int, height: int, tolerance: float = 0.01) -> bool:
+    """Whether an image of this size has a lat-long panorama's 2:1 shape (within 1 %).
+
+    A tolerance, because resized or cropped panoramas are often a pixel off 2:1.
+    """
+    return height > 0 and abs(width / height - LATLONG_ASPECT) <= tolerance * LATLONG_ASPECT
+
+
+def bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray, wrap_x: bool = False
+             ) -> np.ndarray:
+    """Sample (H, W, C) at continuous pixel coordinates (centres at +0.5), float32 out.
+
+    Rows clamp at the top and bottom; columns clamp too, or wrap around with
+    ``wrap_x`` (a lat-long panorama's left/right seam).
+    """
+    h, w = image.shape[:2]
+    fx, fy = x - 0.5, np.clip(y - 0.5, 0.0, h - 1)
+    if not wrap_x:
+        fx = np.clip(fx, 0.0, w - 1)
+    x0, y0 = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+    ax, ay = (fx - x0)[..., None], (fy - y0)[..., None]
+    y1 = np.minimum(y0 + 1, h - 1)
+    if wrap_x:
+        x0, x1 = x0 % w, (x0 + 1) % w
+    else:
+        x1 = np.minimum(x0 + 1, w - 1)
+    top = image[y0, x0] * (1 - ax) + image[y0, x1] * ax
+    bottom = image[y1, x0] * (1 - ax) + image[y1, x1] * ax
+    return (top * (1 - ay) + bottom * ay).astype(np.float32)
+
+
+def sample_latlong(panorama: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of a lat-long panorama (H, W, C) in unit directions (..., 3).
+
+    Returns (..., C) float32; longitude wraps, latitude clamps.
+    """
+    pano = np.asarray(panorama, np.float32)
+    h, w = pano.shape[:2]
+    xy = direction_to_latlong(directions, w, h)
+    return bilinear(pano, xy[..., 0], xy[..., 1], wrap_x=True)
+
+
+CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
+"""The faces of a cube map in OpenEXR order."""
+
+_X, _Y, _Z = np.eye(3)
+CUBE_FACE_AXES = {
+    "+X": (_Z, -_Y, _X),
+    "-X": (-_Z, -_Y, -_X),
+    "+Y": (_X, -_Z, _Y),
+    "-Y": (_X, _Z, -_Y),
+    "+Z": (-_X, -_Y, _Z),
+    "-Z": (_X, -_Y, -_Z),
+}
+"""Face -> (image right, image down, view direction) as world unit vectors; stacked as
+rows they are the face camera's world-to-camera rotation."""
 
 
 def latlong_solid_angles(width: int, height: int) -> np.ndarray:

@@ -28,63 +28,22 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from . import colour
 from .atomic import write_text
 from .errors import InputError, NotBuiltYet, UsageError
 from .kinds import Artifact, Kind
 from .outputs import check_output
 from .progress import Progress
 from .provenance import tool_version, versions
-from .registry import Converter, Registry, default_registry
+from .registry import (
+    Converter,
+    Registry,
+    Settings,
+    StageContext,
+    default_registry,
+)
 
 STATE_FILE = ".gaslight-state.json"
 REPORT_FILE = "report.json"
-
-
-@dataclass
-class Settings:
-    """Run-wide settings every converter may read."""
-
-    ocio_config: str = colour.BUILTIN_CONFIG
-    input_space: str = colour.DEFAULT_INPUT_SPACE
-    working_space: str = colour.DEFAULT_WORKING_SPACE
-    device: str = "cpu"
-    seed: int = 0
-
-    @classmethod
-    def resolved(cls, ocio_config: str | None = None, input_space: str | None = None,
-                 working_space: str | None = None, **kw: Any) -> Settings:
-        """Settings with the OCIO config resolved and the space names checked."""
-        uri = colour.resolve_config_uri(ocio_config)
-        return cls(
-            ocio_config=uri,
-            input_space=colour.resolve_space(input_space or colour.DEFAULT_INPUT_SPACE, uri),
-            working_space=colour.resolve_space(
-                working_space or colour.DEFAULT_WORKING_SPACE, uri),
-            **kw,
-        )
-
-
-@dataclass
-class StageContext:
-    inputs: dict[Kind, Artifact]
-    output: Path
-    settings: Settings
-    options: dict[str, Any]
-    progress: Progress
-    resume: bool = False
-    """Whether the run resumes: a stage may continue its own interrupted work
-    (the fit from its checkpoint) instead of starting over."""
-
-    def input(self, kind: Kind) -> Artifact:
-        return self.inputs[kind]
-
-
-@dataclass
-class StageResult:
-    metadata: dict[str, Any] = field(default_factory=dict)
-    counts: dict[str, Any] = field(default_factory=dict)
-    metrics: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -267,12 +226,18 @@ class ChainRun:
         artifacts: dict[Kind, Artifact] = {a.kind: a for a in given}
         self.given = list(artifacts.values())
         steps = self._steps(artifacts, targets, choose)
+        for conv in steps:  # before any work: an unknown option is an error, not dropped
+            self.registry.check_options(conv.step, (options or {}).get(conv.step, {}))
         check_output(self.out_dir, folder=True)
         for kind, path in (outputs or {}).items():
             check_output(path, folder=_is_folder_output(kind, Path(path)))
         created_out = not self.out_dir.exists()
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        state = self._load_state() if resume else {}
+        # Without resume every stage runs, but the state of stages this run does not make
+        # stays: `hdri out/splats.ply -o out/probe.exr` must not make the next `run -o out`
+        # redo its fit.
+        state = self._load_state()
+        self._earlier = self._load_report()
         total = len(steps)
         for index, conv in enumerate(steps, start=1):
             stage_options = dict((options or {}).get(conv.step, {}))
@@ -282,7 +247,7 @@ class ChainRun:
                             self.out_dir / conv.output.default_name)
             key = fingerprint(conv, inputs, stage_options, self.settings)
             label = f"{index}/{total} {conv.step}"
-            if _finished(state.get(conv.step), key, out_path):
+            if resume and _finished(state.get(conv.step), key, out_path):
                 done = state[conv.step]
                 self.progress.message(f"[{label}] {conv.name}: already done, resuming after it")
                 record = StageRecord(**{**done["record"], "status": "resumed"})
@@ -400,7 +365,27 @@ class ChainRun:
                 return alt
         raise UsageError(f"no {conv.step} converter applies: {conv.name}: {reason}")
 
+    def _load_report(self) -> dict[str, Any]:
+        try:
+            earlier = json.loads((self.out_dir / REPORT_FILE).read_text())
+        except (OSError, json.JSONDecodeError):
+            return {}
+        return earlier if isinstance(earlier, dict) else {}
+
+    def _kept_stages(self) -> list[dict[str, Any]]:
+        """Stages an earlier command recorded in this folder's report that this run has not
+        remade (another output): a single-stage command adds to the report of a ``run``."""
+        earlier = getattr(self, "_earlier", {})
+        stages = earlier.get("stages")
+        if not isinstance(stages, list):
+            return []
+        mine = {r.output for r in self.records}
+        command = earlier.get("command")
+        return [{**st, "command": st.get("command", command)} for st in stages
+                if isinstance(st, dict) and st.get("output") not in mine]
+
     def report(self, status: str) -> dict[str, Any]:
+        kept = self._kept_stages()
         return {
             "tool": "gaslight2usd",
             "version": tool_version(),
@@ -413,7 +398,7 @@ class ChainRun:
             "colour": {"ocio_config": self.settings.ocio_config,
                        "working_space": self.settings.working_space,
                        "input_space": self.settings.input_space},
-            "stages": [asdict(r) for r in self.records],
+            "stages": kept + [asdict(r) for r in self.records],
             "total_seconds": round(sum(r.seconds for r in self.records), 3),
             "versions": versions(),
         }

@@ -148,9 +148,45 @@ def convert(
     return out
 
 
-def luminance_weights(space: str, config_uri: str | None = None) -> np.ndarray:
-    """Y weights of the space's RGB primaries (CIE Y of R, G and B)."""
+REC709_Y = (0.2126, 0.7152, 0.0722)
+"""ITU-R BT.709 luminance weights (CIE Y of the linear Rec.709/sRGB primaries): what
+sRGB-encoded photos and Rec.709 files are weighed with. Pixels in the working space
+take :func:`luminance_weights` of that space instead."""
+
+CLIP_LEVEL = 0.99
+"""Encoded value (0-1) at or above which a photo's channel counts as clipped; 8-bit
+JPEGs land a little under 1.0 at saturation, so 1.0 itself would miss them."""
+
+
+def luminance_weights(space: str | None = None, config_uri: str | None = None, *,
+                      fallback: bool = False) -> np.ndarray:
+    """Y weights (float32) of the space's RGB primaries (CIE Y of R, G and B).
+
+    ``space`` None means linear Rec.709 (:data:`REC709_Y`). With ``fallback`` a
+    space the config does not know also gives Rec.709's weights instead of an
+    :class:`InputError` (in-memory data with a made-up space name, untagged files).
+    """
+    rec709_y = np.array(REC709_Y, dtype=np.float32)  # ITU-R BT.709
+    if space is None:
+        return rec709_y
     uri = resolve_config_uri(config_uri)
-    basis = convert(np.eye(3, dtype=np.float32), space, DEFAULT_LINEAR_FILE_SPACE, uri)
-    rec709_y = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)  # ITU-R BT.709
+    try:
+        basis = convert(np.eye(3, dtype=np.float32), space, DEFAULT_LINEAR_FILE_SPACE, uri)
+    except InputError:
+        if fallback:
+            return rec709_y
+        raise
     return (basis @ rec709_y).astype(np.float32)
+
+
+def srgb_encode(x: np.ndarray) -> np.ndarray:
+    """The IEC 61966-2-1 sRGB transfer function, linear [0, 1] -> encoded.
+
+    Piecewise: ``12.92 x`` below 0.0031308, else ``1.055 x^(1/2.4) - 0.055``.
+    """
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def srgb_decode(v: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`srgb_encode` (IEC 61966-2-1), encoded [0, 1] -> linear."""
+    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))

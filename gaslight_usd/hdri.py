@@ -29,6 +29,7 @@ import OpenImageIO as oiio
 from . import colour
 from .atomic import atomic_path
 from .errors import GaslightError
+from .export_options import HDRI_WIDTH
 from .imageio import write_exr
 from .provenance import tool_version
 
@@ -37,7 +38,6 @@ LATLONG_CONVENTION = ("OpenEXR envmap=latlong: centre +Z, quarter width +X, top 
 CUBE_CONVENTION = ("OpenEXR envmap=cube: faces stacked vertically +X,-X,+Y,-Y,+Z,-Z; "
                    "world frame of the splats; scene-linear unclamped radiance")
 FACE_NAMES = ("px", "nx", "py", "ny", "pz", "nz")
-DEFAULT_WIDTH = 2048
 
 
 @dataclass
@@ -148,7 +148,7 @@ def probe_output_paths(output: str | Path, count: int) -> list[Path]:
 
 
 def render_probe(scene, position: Sequence[float], path: str | Path,
-                 width: int = DEFAULT_WIDTH, cube: bool = False, faces: bool = False,
+                 width: int = HDRI_WIDTH, cube: bool = False, faces: bool = False,
                  tx: bool = False, working_space: str = colour.DEFAULT_WORKING_SPACE,
                  output_space: str | None = None, config_uri: str | None = None,
                  attributes: Mapping[str, Any] | None = None,

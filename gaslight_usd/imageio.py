@@ -163,14 +163,7 @@ def read_pixels(path: str | Path, pixel_type: Any = None) -> tuple[oiio.ImageSpe
     file raises :class:`InputError` naming it. ``pixel_type`` defaults to float.
     """
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path)
-    if path.is_dir():
-        raise InputError("is a folder, expected an image file", path)
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        reason = oiio.geterror().strip() or "unknown format"
-        raise InputError(f"cannot read image: {_one_line(reason)}", path)
+    inp = _open(path)
     try:
         spec = oiio.ImageSpec(inp.spec())
         pixels = inp.read_image(oiio.FLOAT if pixel_type is None else pixel_type)
@@ -183,6 +176,19 @@ def read_pixels(path: str | Path, pixel_type: Any = None) -> tuple[oiio.ImageSpe
     if pixels.ndim == 2:
         pixels = pixels[..., None]
     return spec, pixels
+
+
+def _open(path: Path) -> oiio.ImageInput:
+    """An open OpenImageIO input for ``path``, or :class:`InputError` naming it."""
+    if not path.exists():
+        raise InputError("no such file", path)
+    if path.is_dir():
+        raise InputError("is a folder, expected an image file", path)
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        reason = oiio.geterror().strip() or "unknown format"
+        raise InputError(f"cannot read image: {_one_line(reason)}", path)
+    return inp
 
 
 def _one_line(text: str) -> str:
@@ -202,13 +208,7 @@ def _reoriented(pixels: np.ndarray, orientation: int) -> np.ndarray:
 
 def read_header(path: str | Path) -> oiio.ImageSpec:
     """The image's spec (size, channels, attributes) without reading pixels."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", path)
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        reason = oiio.geterror().strip() or "unknown format"
-        raise InputError(f"cannot read image: {_one_line(reason)}", path)
+    inp = _open(Path(path))
     try:
         return oiio.ImageSpec(inp.spec())
     finally:

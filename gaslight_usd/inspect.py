@@ -48,12 +48,8 @@ def describe_image(path: Path) -> dict[str, Any]:
     if rgb.shape[-1] < 3:
         rgb = np.repeat(rgb[..., :1], 3, axis=-1)
     tagged = spec.getattribute("oiio:ColorSpace") or spec.getattribute("colorSpace")
-    weights = np.array([0.2126, 0.7152, 0.0722], np.float32)
-    if isinstance(tagged, str):
-        try:
-            weights = colour.luminance_weights(tagged)
-        except InputError:
-            pass
+    weights = colour.luminance_weights(tagged if isinstance(tagged, str) else None,
+                                       fallback=True)
     lum = rgb @ weights
     attrs = {a.name: a.value for a in spec.extra_attribs}
     return {

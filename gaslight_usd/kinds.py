@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError
+from .poses.colmap import find_colmap_model
 
 
 class Kind(StrEnum):
@@ -70,20 +71,6 @@ class Artifact:
         # Pipeline code passes plain strings as often as Paths (the README does).
         self.path = Path(self.path)
         self.kind = Kind(self.kind)
-
-
-def _is_colmap_model(folder: Path) -> bool:
-    return any((folder / f"cameras.{ext}").exists() for ext in ("txt", "bin"))
-
-
-def find_colmap_model(folder: Path) -> Path | None:
-    """The folder holding cameras/images files: ``folder``, or ``folder/0``."""
-    if _is_colmap_model(folder):
-        return folder
-    for sub in (folder / "0", folder / "sparse" / "0", folder / "sparse"):
-        if sub.is_dir() and _is_colmap_model(sub):
-            return sub
-    return None
 
 
 def detect_kind(path: str | Path) -> Kind:

@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .chain import ChainRun, Settings
+from .chain import ChainRun
 from .kinds import Artifact, Kind, detect_kind
 from .progress import Progress
-from .registry import Registry, default_registry
+from .registry import Registry, Settings, default_registry
 
 DEFAULT_TARGETS = (Kind.SPLATS, Kind.USD, Kind.HDRI)
 
@@ -86,8 +86,8 @@ def write_run_pictures(out_dir: Path, artifacts: Mapping, settings: Settings,
     """
     from .errors import GaslightError
     from .imageio import LDR_EXTENSIONS, list_images
+    from .poses.views import hdr_view_paths
     from .preview import latlong_hdris, run_contact_sheet
-    from .views import hdr_view_paths
 
     def files(kind: Kind, lister) -> list[Path]:
         art = artifacts.get(kind)

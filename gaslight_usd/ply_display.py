@@ -30,7 +30,7 @@ MIDDLE_GREY = 0.18
 
 def auto_exposure(linear_rec709: np.ndarray, opacities: np.ndarray) -> float:
     """EV that puts the opacity-weighted median luminance at middle grey."""
-    lum = linear_rec709 @ np.array([0.2126, 0.7152, 0.0722])  # ITU-R BT.709
+    lum = linear_rec709 @ np.array(colour.REC709_Y)
     if lum.size == 0 or not np.any(lum > 0):
         return 0.0
     order = np.argsort(lum)

@@ -74,23 +74,30 @@ def bundled_hdri(monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     yield TEST_HDRI
 
 
-@pytest.fixture(scope="session")
-def posed_hdr_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Nine 48x48 HDR views of a small closed synthetic room (bright emitters inside),
-    their true COLMAP model with sparse points from the truth (no triangulation): the
-    cheapest real input a fit, an export and HDRIs run on (``hdr/``, ``sparse/``)."""
-    from gaslight_usd.colmap import ColmapModel, write_model
+def write_posed_views(root: Path, with_points: bool):
+    """Nine 48x48 HDR views of a small closed synthetic room (bright emitters inside)
+    into ``root/hdr`` and their true COLMAP model into ``root/sparse`` (with sparse
+    points from the truth, or none: the fit then triangulates). Returns (truth, cameras)."""
     from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
     from gaslight_usd.imageio import write_exr
+    from gaslight_usd.poses.colmap import ColmapModel, write_model
     from gaslight_usd.render import render
 
-    root = tmp_path_factory.mktemp("posed_hdr")
     truth, cams = closed_scene(), ring_cameras()
     (root / "hdr").mkdir()
     for cam in cams:
         write_exr(root / "hdr" / f"{cam.name[:-4]}.exr", render(truth, cam).image.numpy(),
                   "lin_rec709", {"gaslight:exposure_scale": 1.0}, half=False)
-    points = truth.positions[::3]
-    write_model(root / "sparse", ColmapModel(
+    points = truth.positions[::3] if with_points else None
+    write_model(root / "sparse", ColmapModel(cameras=cams) if points is None else ColmapModel(
         cameras=cams, points=points, point_colours=np.full((len(points), 3), 128, np.uint8)))
+    return truth, cams
+
+
+@pytest.fixture(scope="session")
+def posed_hdr_scene(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """:func:`write_posed_views` with sparse points: the cheapest real input a fit, an
+    export and HDRIs run on (``hdr/``, ``sparse/``)."""
+    root = tmp_path_factory.mktemp("posed_hdr")
+    write_posed_views(root, with_points=True)
     return root

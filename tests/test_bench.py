@@ -221,7 +221,7 @@ def test_region_mean_oracle_keeps_each_clipped_regions_true_energy(bundled_hdri)
 
 
 def test_true_energy_reference_rescales_the_fast_prediction_per_region(bundled_hdri):
-    from gaslight_usd.uplift.bench_methods import recursive_fast, with_true_energy
+    from gaslight_usd.bench.uplift_methods import recursive_fast, with_true_energy
 
     sources = reference.shared_sources()
     pair = next(p for p in (reference.make_pair(sources[i % len(sources)], i, 0, 128, 96)

@@ -13,6 +13,7 @@ from conftest import TEST_HDRI, run_cli, write_jpeg
 
 from gaslight_usd.errors import InputError
 from gaslight_usd.imageio import read_image
+from gaslight_usd.poses.views import load_views
 from gaslight_usd.uplift import GAMMA22, SRGB
 from gaslight_usd.uplift.bracket import (
     Bracket,
@@ -24,7 +25,6 @@ from gaslight_usd.uplift.bracket import (
     read_group_file,
     recover_response,
 )
-from gaslight_usd.views import load_views
 
 
 def real_truth(width: int = 192, height: int = 128, index: int = 3) -> np.ndarray:

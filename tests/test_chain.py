@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from gaslight_usd import registry as registry_mod
-from gaslight_usd.chain import ChainRun, Settings, StageResult, plan
+from gaslight_usd.chain import ChainRun, plan
 from gaslight_usd.errors import GaslightError, NotBuiltYet, UsageError
 from gaslight_usd.imageio import read_image, write_exr
 from gaslight_usd.kinds import Artifact, Kind, detect_kind
+from gaslight_usd.poses.views import hdr_view_paths
 from gaslight_usd.progress import Progress
-from gaslight_usd.registry import Converter, Registry, default_registry
-from gaslight_usd.views import hdr_view_paths
+from gaslight_usd.registry import Converter, Registry, Settings, StageResult, default_registry
 
 
 def mean_panorama(ctx):
@@ -64,6 +64,29 @@ def test_run_writes_outputs_report_and_resumes(photo_folder, tmp_path):
     again = ChainRun(out, Settings.resolved(), registry_with_mean(), Progress(quiet=True))
     again.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDRI])
     assert [r.status for r in again.records] == ["resumed", "resumed"]
+
+
+def test_a_single_stage_into_a_run_folder_keeps_the_runs_state_and_report(photo_folder,
+                                                                            tmp_path):
+    """`hdri out/splats.ply -o out/probe.exr` after `run -o out`: the next run still
+    resumes the stages the single-stage command did not make, and report.json lists both."""
+    out = tmp_path / "run"
+    ChainRun(out, Settings.resolved(), registry_with_mean(), Progress(quiet=True),
+             command=["gaslight2usd", "run"]).run([Artifact(Kind.LDR_VIEWS, photo_folder)],
+                                                  [Kind.HDRI])
+    single = ChainRun(out, Settings.resolved(), registry_with_mean(), Progress(quiet=True),
+                      command=["gaslight2usd", "hdri"])
+    single.run([Artifact(Kind.HDR_VIEWS, out / "hdr")], [Kind.HDRI],
+               outputs={Kind.HDRI: out / "second"}, resume=False)
+    assert (out / "second" / "mean.exr").exists()
+    report = json.loads((out / "report.json").read_text())
+    assert [(s["name"], s["output"]) for s in report["stages"]] == [
+        ("uplift", str(out / "hdr")), ("hdri", str(out / "hdri")),
+        ("hdri", str(out / "second"))]
+    assert report["stages"][0]["command"] == ["gaslight2usd", "run"]
+    again = ChainRun(out, Settings.resolved(), registry_with_mean(), Progress(quiet=True))
+    again.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDRI])
+    assert [r.status for r in again.records] == ["resumed", "done"]
 
 
 def test_failure_is_reported_and_the_rerun_resumes_after_done_stages(photo_folder, tmp_path):

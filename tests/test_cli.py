@@ -126,7 +126,7 @@ def test_run_poses_option_takes_only_poses(photo_folder, tmp_path):
     assert str(photo_folder) in res.stderr and not out.exists()
     # Real poses given by option are an input like any other: here the HDR views
     # and the poses are made or taken, and the report names the given poses.
-    from gaslight_usd.colmap import ColmapModel, write_model
+    from gaslight_usd.poses.colmap import ColmapModel, write_model
 
     write_model(tmp_path / "sparse", ColmapModel(cameras=[]))
     res = run_cli("run", photo_folder, "--poses", tmp_path / "sparse", "-o", out,

@@ -10,14 +10,14 @@ from conftest import write_jpeg
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel
-from gaslight_usd.colour import luminance_weights
+from gaslight_usd.colour import REC709_Y, luminance_weights
 from gaslight_usd.fit.data import FitData, fit_floor
 from gaslight_usd.fit.losses import bounded_l1
 from gaslight_usd.imageio import read_channel, read_image
-from gaslight_usd.views import CLIP_FLOOR_CHANNEL
+from gaslight_usd.poses.colmap import ColmapModel
+from gaslight_usd.poses.views import CLIP_FLOOR_CHANNEL
 
-Y = torch.tensor([0.2126, 0.7152, 0.0722])
+Y = torch.tensor(REC709_Y)
 
 
 def test_bounded_l1_penalises_only_radiance_below_the_floor_in_clipped_pixels():
@@ -77,7 +77,7 @@ def test_fit_floor_bounds_the_mean_of_a_downscaled_pixel():
     image = np.ones((2, 4, 3), np.float32)
     floor = np.zeros((2, 4), np.float32)
     floor[0, 0] = 5.0  # one clipped photo pixel, recorded luminance 5
-    w = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    w = np.array(REC709_Y, np.float32)
     out = fit_floor(floor, image, w, (4, 2), 2)
     assert out.shape == (1, 2)
     assert abs(out[0, 0] - (5.0 + 3 * 1.0) / 4) < 1e-5  # its block: a bound on the mean

@@ -10,10 +10,10 @@ import pycolmap
 import pytest
 
 from gaslight_usd.cameras import PinholeCamera
-from gaslight_usd.colmap import ColmapModel, read_model, write_model
 from gaslight_usd.errors import InputError
 from gaslight_usd.poses import read_poses, write_poses
-from gaslight_usd.transforms_json import read_transforms, write_transforms
+from gaslight_usd.poses.colmap import ColmapModel, read_model, write_model
+from gaslight_usd.poses.transforms_json import read_transforms, write_transforms
 
 
 @pytest.fixture(scope="module")

@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom, UsdShade
 
+from gaslight_usd.colour import REC709_Y
 from gaslight_usd.ply import write_ply
 from gaslight_usd.splats import SplatScene
 from gaslight_usd.usd.instancer import emitter_mask
@@ -43,7 +44,7 @@ FAINT_RGB = np.array([[1.3, 1.0, 0.9], [0.8, 1.1, 0.9]])
 ALBEDO = 0.8
 SIZE, SAMPLES, WINDOW_PX = 64, 64, 3
 CAMERA_HEIGHT, LENS_MM = 6.0, 35.0
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+LUMA = np.array(REC709_Y)
 RADIANCE_TOLERANCE = 0.12
 """Cycles noise in a 29-pixel window at 64 spp is about 3 % (1 sigma); converged
 (1024 spp) the windows are within 0.3 % of the analytic value."""

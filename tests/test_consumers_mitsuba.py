@@ -39,13 +39,14 @@ import pytest
 
 from gaslight_usd.cameras import (
     PinholeCamera,
+    bilinear,
     direction_to_latlong,
     latlong_directions,
     latlong_solid_angles,
 )
+from gaslight_usd.colour import REC709_Y
 from gaslight_usd.imageio import read_image
 from gaslight_usd.ply import write_ply
-from gaslight_usd.render.envmap import _bilinear
 from gaslight_usd.splats import SplatScene
 
 EXPORT = Path(sys.executable).with_name("gaslight2usd")
@@ -59,7 +60,7 @@ PAIR_SIGMA_DEG = 1.5 * SIGMA_DEG
 AXES = np.concatenate([np.eye(3)[1:], -np.eye(3)])
 """The axes the splat groups sit around: all but +X, where the occluding pair is."""
 GROUPS = 4 * len(AXES)
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+LUMA = np.array(REC709_Y)
 
 
 def _mitsuba():
@@ -257,7 +258,7 @@ def test_mitsuba_camera_sees_our_latlong_the_right_way_round(renders):
                         np.array([[-1.0, 0, 0], [0, -1, 0], [0, 0, 1]]),
                         -np.array([[-1.0, 0, 0], [0, -1, 0], [0, 0, 1]]) @ PROBE)
     xy = direction_to_latlong(cam.ray_directions(), ours.shape[1], ours.shape[0])
-    sampled = _bilinear(ours, xy[..., 0], xy[..., 1], wrap_x=True)
+    sampled = bilinear(ours, xy[..., 0], xy[..., 1], wrap_x=True)
     lum_view, lum_ours = view @ LUMA, sampled @ LUMA
     assert lum_view.max() > 0.1
     # The four +Z splats: same pixels bright in both, same light.

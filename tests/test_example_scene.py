@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaslight_usd.colmap import read_model
 from gaslight_usd.imageio import read_image
+from gaslight_usd.poses.colmap import read_model
 
 ROOT = Path(__file__).resolve().parents[1] / "examples"
 ROOM = ROOT / "room"

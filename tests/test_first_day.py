@@ -85,19 +85,19 @@ def test_usd_source_is_relative_to_the_usd_file(probes, tmp_path):
 
 
 def test_photos_without_exif_exposure_are_named_in_a_warning(tmp_path, caplog):
-    from gaslight_usd.views import load_views
+    from gaslight_usd.poses.views import load_views
 
     folder = tmp_path / "photos"
     folder.mkdir()
     img = np.full((8, 8, 3), 90, np.uint8)
     write_jpeg(folder / "a.jpg", img, exposure_time=1 / 60, f_number=4, iso=100)
     write_jpeg(folder / "b.jpg", img)
-    with caplog.at_level(logging.WARNING, logger="gaslight_usd.views"):
+    with caplog.at_level(logging.WARNING, logger="gaslight_usd.poses.views"):
         load_views(folder, "sRGB Encoded Rec.709 (sRGB)", "ACEScg")
     assert "1 of 2 photos carry no EXIF exposure (ExposureTime): b.jpg" in caplog.text
     caplog.clear()
     (folder / "b.jpg").unlink()
-    with caplog.at_level(logging.WARNING, logger="gaslight_usd.views"):
+    with caplog.at_level(logging.WARNING, logger="gaslight_usd.poses.views"):
         load_views(folder, "sRGB Encoded Rec.709 (sRGB)", "ACEScg")
     assert "EXIF" not in caplog.text
 

@@ -6,17 +6,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
+from conftest import write_posed_views
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import EXIT_BAD_INPUT, InputError
 from gaslight_usd.fit import fit_splats, load_fit_data, preset
 from gaslight_usd.fit.data import box_downscale, scale_camera
 from gaslight_usd.fit.losses import elongation_penalty, fit_loss, held_out_errors, ssim
-from gaslight_usd.fit.synthetic import closed_scene, look_at, ring_cameras
+from gaslight_usd.fit.synthetic import look_at
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
+from gaslight_usd.poses.colmap import ColmapModel, write_model
 from gaslight_usd.progress import Progress
 from gaslight_usd.render import render
 
@@ -24,12 +25,7 @@ from gaslight_usd.render import render
 @pytest.fixture(scope="module")
 def synthetic(tmp_path_factory):
     root = tmp_path_factory.mktemp("synthetic")
-    truth, cams = closed_scene(), ring_cameras()
-    (root / "hdr").mkdir()
-    for cam in cams:
-        write_exr(root / "hdr" / f"{cam.name[:-4]}.exr", render(truth, cam).image.numpy(),
-                  "lin_rec709", {"gaslight:exposure_scale": 1.0}, half=False)
-    write_model(root / "sparse", ColmapModel(cameras=cams))
+    truth, cams = write_posed_views(root, with_points=False)
     return root, truth, cams
 
 

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from gaslight_usd.cameras import PinholeCamera
+from gaslight_usd.colour import REC709_Y
 from gaslight_usd.fit.power import (
     aimed_camera,
     clipped_light_splats,
@@ -16,7 +17,7 @@ from gaslight_usd.fit.power import (
 )
 from gaslight_usd.splats import SplatScene
 
-Y709 = np.array([0.2126, 0.7152, 0.0722], np.float32)
+Y709 = np.array(REC709_Y, np.float32)
 
 
 def _flat(positions, size, colours, normal_axis=1, opacity=0.99):

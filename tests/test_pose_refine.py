@@ -14,11 +14,11 @@ from scipy.spatial.transform import Rotation
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel, read_model, write_model
 from gaslight_usd.fit import fit_splats, preset
 from gaslight_usd.fit.pose_refine import PoseRefiner, rotation_error_deg
 from gaslight_usd.fit.synthetic import closed_scene, ring_cameras, synthetic_data
 from gaslight_usd.imageio import write_exr
+from gaslight_usd.poses.colmap import ColmapModel, read_model, write_model
 from gaslight_usd.render import render
 
 

@@ -11,10 +11,16 @@ import numpy as np
 import OpenImageIO as oiio
 import pytest
 
-from gaslight_usd.cameras import PinholeCamera, direction_to_latlong, quaternion_to_matrix
-from gaslight_usd.colmap import ColmapModel, read_model
+from gaslight_usd.cameras import (
+    PinholeCamera,
+    direction_to_latlong,
+    is_latlong,
+    quaternion_to_matrix,
+)
 from gaslight_usd.errors import InputError
-from gaslight_usd.frame import (
+from gaslight_usd.poses import colour_points, read_poses
+from gaslight_usd.poses.colmap import ColmapModel, read_model
+from gaslight_usd.poses.frame import (
     align_and_compare,
     camera_axes,
     parse_scale_from,
@@ -24,9 +30,8 @@ from gaslight_usd.frame import (
     transform_model,
     umeyama,
 )
-from gaslight_usd.panorama import FACES, cube_faces, face_camera, is_latlong
-from gaslight_usd.poses import colour_points, read_poses
-from gaslight_usd.sfm import SfmOptions, solve_poses, triangulate_known_poses
+from gaslight_usd.poses.panorama import FACES, cube_faces, face_camera
+from gaslight_usd.poses.sfm import SfmOptions, solve_poses, triangulate_known_poses
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "room"
@@ -59,7 +64,7 @@ def ring_model(seed: int = 0) -> ColmapModel:
 
 
 def test_threaded_matching_verifies_pairs_with_a_seeded_ransac():
-    from gaslight_usd.sfm import _verification_options
+    from gaslight_usd.poses.sfm import _verification_options
 
     assert SfmOptions().matching_threads == -1 and SfmOptions().threads == 1
     assert _verification_options(7).ransac.random_seed == 7  # COLMAP's -1: from the clock
@@ -286,7 +291,7 @@ def test_triangulate_known_poses_on_the_example():
 
 def test_cli_converts_colmap_to_transforms_and_back(tmp_path):
     model = ring_model(4)
-    from gaslight_usd.colmap import write_model
+    from gaslight_usd.poses.colmap import write_model
     write_model(tmp_path / "sparse" / "0", model, binary=True)
     cli = [str(Path(sys.executable).with_name("gaslight2usd")), "poses"]
     proc = subprocess.run(cli + ["--from", str(tmp_path / "sparse"), "-o",

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from gaslight_usd.cameras import PinholeCamera, latlong_directions
+from gaslight_usd.cameras import CUBE_FACES, PinholeCamera, latlong_directions
 from gaslight_usd.imageio import read_image, write_exr
 from gaslight_usd.render import (
     RASTERIZER_ENV,
@@ -21,7 +21,6 @@ from gaslight_usd.render import (
     render_reference,
 )
 from gaslight_usd.render.envmap import (
-    CUBE_FACES,
     cube_face_cameras,
     cube_to_latlong,
     latlong_to_cube,

@@ -12,26 +12,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import write_posed_views
 
 from gaslight_usd.cli.main import main
-from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import EXIT_INTERRUPTED
-from gaslight_usd.fit.synthetic import closed_scene, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
-from gaslight_usd.render import render
 
 
 @pytest.fixture(scope="module")
 def posed_views(tmp_path_factory):
     """Nine 48x48 HDR views of a closed synthetic scene and their COLMAP model."""
     root = tmp_path_factory.mktemp("posed")
-    truth, cams = closed_scene(), ring_cameras()
-    (root / "hdr").mkdir()
-    for cam in cams:
-        write_exr(root / "hdr" / f"{cam.name[:-4]}.exr", render(truth, cam).image.numpy(),
-                  "lin_rec709", {"gaslight:exposure_scale": 1.0}, half=False)
-    write_model(root / "sparse", ColmapModel(cameras=cams))
+    write_posed_views(root, with_points=False)
     return root
 
 
@@ -84,10 +77,10 @@ def test_a_killed_run_resumes_its_fit_from_the_checkpoint(posed_views, tmp_path,
 
 def test_a_changed_input_or_fresh_run_does_not_resume(posed_views, tmp_path):
     """The checkpoint is only trusted for the very stage that was killed."""
-    from gaslight_usd.chain import ChainRun, Settings, StageResult
+    from gaslight_usd.chain import ChainRun
     from gaslight_usd.kinds import Artifact, Kind
     from gaslight_usd.progress import Progress
-    from gaslight_usd.registry import Converter, Registry
+    from gaslight_usd.registry import Converter, Registry, Settings, StageResult
 
     seen, kill = [], [False]
 

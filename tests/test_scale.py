@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from gaslight_usd.bench.suite_scale import RUN_MAIN, photo_set, run_measured, upscale_photos
-from gaslight_usd.colmap import ColmapModel, write_model
 from gaslight_usd.errors import InputError
 from gaslight_usd.evaluation.resample import area_resize as dense_area_resize
 from gaslight_usd.fit.data import box_downscale, load_fit_data, scale_camera_to
@@ -20,6 +19,7 @@ from gaslight_usd.fit.presets import PRESETS, uplift_size
 from gaslight_usd.imageio import read_header, read_image, write_exr
 from gaslight_usd.locate import example_room
 from gaslight_usd.poses import read_poses
+from gaslight_usd.poses.colmap import ColmapModel, write_model
 from gaslight_usd.resize import area_resize, fit_within
 
 EXAMPLE = example_room()

@@ -310,9 +310,9 @@ def test_fast_predictor_relights_unseen_crops(name, least_gain):
     is 2 dB where the full-size panorama clears 2.5 dB. sunset's hazy low sun is much
     dimmer than the other suns: the gain is small there, but no loss.
     """
+    from gaslight_usd.bench.calibrate import evaluation_curve
     from gaslight_usd.evaluation.reference import load_source, make_pair
     from gaslight_usd.evaluation.relight import RelightRenderer, relight_scores
-    from gaslight_usd.uplift.calibrate import evaluation_curve
 
     source = load_source(TEST_HDRI / f"{name}.exr")
     renderer = RelightRenderer(resolution=48, spp=8, env_height=64, seed=3)

@@ -10,12 +10,11 @@ import math
 import numpy as np
 import pytest
 
-from gaslight_usd.bench import suite_uplift
+from gaslight_usd.bench import calibrate, suite_uplift
 from gaslight_usd.evaluation import shared_panoramas as shared
 from gaslight_usd.evaluation.reference import load_source, make_pair
 from gaslight_usd.evaluation.resample import area_resize
 from gaslight_usd.imageio import write_exr
-from gaslight_usd.uplift import calibrate
 
 POLYHAVEN = shared.folder_path(shared.POLYHAVEN)
 needs_polyhaven = pytest.mark.skipif(not (POLYHAVEN / "park.exr").exists(),

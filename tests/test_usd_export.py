@@ -293,7 +293,7 @@ def test_unknown_sfm_units_are_stated_in_the_usd(tmp_path):
     """SfM poses without a scale: the stage says the unit is unknown and how to give one."""
     from gaslight_usd.converters.fit_splats import length_unit
 
-    from gaslight_usd.frame import UNKNOWN_UNITS_HINT
+    from gaslight_usd.poses.frame import UNKNOWN_UNITS_HINT
 
     frame = {"frame_source": "sfm", "up_axis": "Y", "meters_per_unit": None,
              "units": UNKNOWN_UNITS_HINT}

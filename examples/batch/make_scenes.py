@@ -18,7 +18,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from gaslight_usd.colmap import ColmapModel, read_model, write_model
+from gaslight_usd.poses.colmap import ColmapModel, read_model, write_model
 
 ROOM = Path(__file__).resolve().parents[1] / "room"
 

@@ -35,9 +35,9 @@ from typing import Any
 
 import numpy as np
 
-from ..colmap import ColmapModel
 from ..imageio import read_image
 from ..poses import read_poses, write_poses
+from ..poses.colmap import ColmapModel
 from .dark_frames import write_linear_photo
 
 KINDS: dict[str, tuple[float, ...]] = {

@@ -69,11 +69,12 @@ def _frame_levels(pos: Any) -> tuple[float, float]:
 
 def run_shoot(scenes: list[np.ndarray], response: str, work: Path) -> list[dict[str, Any]]:
     """Shoot, merge through the converter, score each position (see the module doc)."""
-    from ..chain import ChainRun, Settings
+    from ..chain import ChainRun
     from ..evaluation.bracket_shoot import aeb_shoot
     from ..imageio import read_image
     from ..kinds import Artifact, Kind
     from ..progress import Progress
+    from ..registry import Settings
 
     shoot = aeb_shoot(scenes[:5], work / "photos", scenes[5:7])
     out = work / f"hdr-{response}"

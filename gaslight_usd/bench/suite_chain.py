@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from ..cameras import latlong_directions, latlong_solid_angles
-from ..colour import convert
+from ..colour import REC709_Y, convert
 from ..errors import GaslightError
 from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
 from ..fit import fit_splats, load_fit_data, preset
@@ -137,7 +137,7 @@ def irradiance_luminance(pano: np.ndarray, normals: np.ndarray) -> np.ndarray:
     h, w = pano.shape[:2]
     dirs = latlong_directions(w, h).reshape(-1, 3)
     d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w)).reshape(-1)
-    lum = pano.reshape(-1, 3).astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    lum = pano.reshape(-1, 3).astype(np.float64) @ np.array(REC709_Y)
     return (np.clip(dirs @ normals.T, 0.0, None) * (d_omega * lum)[:, None]).sum(0)
 
 
@@ -155,7 +155,7 @@ def cone_power(pano: np.ndarray, axis: np.ndarray, half_angle: float) -> float:
     dirs = latlong_directions(w, h)
     inside = dirs @ axis >= math.cos(half_angle)
     d_omega = np.broadcast_to(latlong_solid_angles(w, h), (h, w))
-    lum = pano.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    lum = pano.astype(np.float64) @ np.array(REC709_Y)
     return float((lum * d_omega)[inside].sum())
 
 

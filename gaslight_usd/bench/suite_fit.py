@@ -110,11 +110,11 @@ def sfm_poses_in_true_frame(out: Path, seed: int = 0, example: Path = EXAMPLE) -
     """Solve the example's photos by SfM, align to the true cameras, write to ``out``.
 
     Returns ``out`` (a COLMAP text model in the true world frame: cameras and
-    sparse points moved by the similarity of :func:`~gaslight_usd.frame.align_and_compare`).
+    sparse points moved by the similarity of :func:`~gaslight_usd.poses.frame.align_and_compare`).
     """
-    from ..frame import align_and_compare, split_similarity, transform_model
     from ..poses import read_poses, write_poses
-    from ..sfm import SfmOptions, solve_poses
+    from ..poses.frame import align_and_compare, split_similarity, transform_model
+    from ..poses.sfm import SfmOptions, solve_poses
 
     result = solve_poses(example / "photos", SfmOptions(seed=seed))
     cmp = align_and_compare(result.model, read_poses(example / "sparse" / "0"))

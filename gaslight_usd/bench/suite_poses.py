@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import GaslightError, InputError
-from ..frame import align_and_compare, sfm_frame
 from ..imageio import LDR_EXTENSIONS, list_images
 from ..locate import example_room
 from ..poses import read_poses
-from ..sfm import SfmOptions, solve_poses
+from ..poses.frame import align_and_compare, sfm_frame
+from ..poses.sfm import SfmOptions, solve_poses
 
 NAME = "poses"
 DESCRIPTION = "structure from motion on the bundled example vs its true poses"

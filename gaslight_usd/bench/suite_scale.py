@@ -174,10 +174,10 @@ def probe_accuracy(out: Path, example: Path = EXAMPLE) -> dict[str, float]:
     """
     import numpy as np
 
-    from ..frame import align_and_compare, split_similarity
     from ..imageio import read_image
     from ..ply import read_ply
     from ..poses import read_poses
+    from ..poses.frame import align_and_compare, split_similarity
     from ..render.envmap import PROBE_NEAR, render_latlong
     from .suite_fit import probe_scores
 

@@ -35,7 +35,7 @@ same with every region's power half a stop under and over the truth
 must know the power; the photo's own value stays the floor). Other
 modules add theirs with :func:`register_uplift_method`, and ceilings that
 read the truth with :func:`register_reference_method`; the suite imports
-the optional module ``gaslight_usd.uplift.bench_methods`` and the entry
+the optional module ``gaslight_usd.bench.uplift_methods`` and the entry
 points of group ``gaslight_usd.bench_uplift`` (each a callable taking
 ``register_uplift_method``) before it runs, so methods living there join
 without this file changing. A plug-in that fails to load is reported as a
@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from ..colour import CLIP_LEVEL
 from ..evaluation import curves
 from ..evaluation.metrics import hdr_errors, light_source_errors
 from ..evaluation.reference import ReferencePair, make_pair, shared_sources
@@ -73,9 +74,6 @@ FULL_COUNT = 200
 QUICK_COUNT = 8
 SIZES = {"quick": {"photo": (128, 96), "render": 64, "spp": 8, "env": 128},
          "full": {"photo": (256, 192), "render": 128, "spp": 16, "env": 256}}
-
-CLIP_LEVEL = 0.99
-"""Encoded level from which a pixel counts as clipped (as the fast predictor's)."""
 
 UpliftFn = Callable[[np.ndarray, str], np.ndarray]
 _METHODS: dict[str, Callable[[ReferencePair], np.ndarray]] = {}
@@ -150,7 +148,7 @@ register_reference_method("region-mean-oracle-0.5-stop-over",
                           lambda pair: region_mean_oracle(pair, 0.5))
 
 
-PLUGIN_MODULE = "gaslight_usd.uplift.bench_methods"
+PLUGIN_MODULE = "gaslight_usd.bench.uplift_methods"
 ENTRY_POINT_GROUP = "gaslight_usd.bench_uplift"
 
 

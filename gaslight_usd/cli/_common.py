@@ -6,8 +6,8 @@ import argparse
 import json
 from typing import Any
 
-from ..chain import Settings
 from ..progress import Progress
+from ..registry import Settings
 
 
 def add_common(parser: argparse.ArgumentParser, colour: bool = False,

@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..chain import StageContext
+from ..chain import ChainRun
 from ..errors import InputError
+from ..export_options import UsdExportOptions as D
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
+from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
 from ._points import parse_point
 
@@ -80,18 +82,18 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the 'lighting' variant scene.usda selects (default: rig, which "
                         "Blender, usdview and Karma all import; Blender drops "
                         "particlefield)")
-    p.add_argument("--palette-tolerance", type=float, default=0.10, metavar="REL",
-                   help="95th-percentile relative colour error allowed for the "
-                        "instancer palette (default 0.10)")
-    p.add_argument("--non-emitters", choices=["drop", "diffuse"], default="drop",
+    p.add_argument("--palette-tolerance", type=float, default=D.palette_tolerance,
+                   metavar="REL", help="95th-percentile relative colour error allowed for "
+                   f"the instancer palette (default {D.palette_tolerance:.2f})")
+    p.add_argument("--non-emitters", choices=["drop", "diffuse"], default=D.non_emitters,
                    help="what the instancer does with splats below the threshold")
-    p.add_argument("--rig-tolerance", type=float, default=0.05, metavar="REL",
+    p.add_argument("--rig-tolerance", type=float, default=D.rig_tolerance, metavar="REL",
                    help="irradiance error at the probe allowed for the rig, relative "
-                        "to its largest irradiance (default 0.05)")
+                        f"to its largest irradiance (default {D.rig_tolerance})")
     p.add_argument("--at", type=parse_point, metavar="X,Y,Z",
                    help="rig probe point (default: centre of the splats' bounds)")
-    p.add_argument("--dome-size", type=int, default=1024, metavar="N",
-                   help="dome lat-long width in pixels (default 1024)")
+    p.add_argument("--dome-size", type=int, default=D.dome_width, metavar="N",
+                   help=f"dome lat-long width in pixels (default {D.dome_width})")
     p.add_argument("--display-ply", type=Path, metavar="PATH",
                    help="also write a display-referred (tone-mapped) PLY for viewers "
                         "that clip HDR; its exposure is in the header comments")
@@ -100,8 +102,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..converters.export_usd import export_usd_stage
-
     if not args.splats.is_file():
         raise InputError("no such file", args.splats)
     check_output(args.output, folder=args.output.suffix.lower() not in USD_ROOT_SUFFIXES)
@@ -114,10 +114,17 @@ def run(args: argparse.Namespace) -> int:
                "non_emitters": args.non_emitters, "rig_tolerance": args.rig_tolerance,
                "at": args.at, "dome_width": args.dome_size,
                "display_ply": args.display_ply, "default_variant": args.default_variant}
-    ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
-                       output=args.output, settings=settings, options=options,
-                       progress=progress_from(args))
-    result = export_usd_stage(ctx)
+    # Through the registry like every stage: report.json beside the root layer, and a
+    # plug-in export converter of higher priority is honoured.
+    root = args.output
+    if root.suffix.lower() not in USD_ROOT_SUFFIXES:  # a folder: the root layer goes in it
+        root = root / Kind.USD.default_name
+    folder = root.parent
+    runner = ChainRun(folder if str(folder) else Path("."), settings, default_registry(),
+                      progress_from(args))
+    runner.run([Artifact(Kind.SPLATS, args.splats)], [Kind.USD],
+               options={"export": options}, outputs={Kind.USD: root}, resume=False)
+    result = runner.records[-1]
     lines = [f"wrote {args.output} ({', '.join(args.forms)})"]
     m = result.metrics
     if "instancer" in m:

@@ -12,6 +12,8 @@ from ..errors import InputError, NotBuiltYet
 from ..imageio import LDR_EXTENSIONS, list_images
 from ..kinds import Artifact, Kind
 from ..registry import default_registry
+from ..uplift.bracket import BracketOptions
+from ..uplift.pipeline import UpliftOptions
 from ._common import add_common, emit, progress_from, settings_from
 
 HELP = "uplift LDR photos to scene-linear HDR EXRs (one per photo)"
@@ -71,14 +73,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="folder for the EXRs (created)")
     p.add_argument("--method", choices=["auto", *METHODS], default="auto")
     u = p.add_argument_group("uplift")
-    u.add_argument("--predictor", default="fast", metavar="NAME",
-                   help="exposure predictor for --method recursive (default: fast)")
+    u.add_argument("--predictor", default=UpliftOptions.predictor, metavar="NAME",
+                   help="exposure predictor for --method recursive "
+                        f"(default: {UpliftOptions.predictor})")
     u.add_argument("--weights", metavar="PATH",
                    help="predictor weights (diffusion: checkpoint; default $GASLIGHT_WEIGHTS)")
-    u.add_argument("--threshold", type=float, default=0.9,
+    u.add_argument("--threshold", type=float, default=UpliftOptions.threshold,
                    help="stop darker steps when the darkest image's max is below this "
-                        "(encoded, default 0.9)")
-    u.add_argument("--max-steps", type=int, default=6, help="most darker steps (default 6)")
+                        f"(encoded, default {UpliftOptions.threshold})")
+    u.add_argument("--max-steps", type=int, default=UpliftOptions.max_steps,
+                   help=f"most darker steps (default {UpliftOptions.max_steps})")
     u.add_argument("--brighter", action="store_true",
                    help="also predict +2/+4 EV images for the shadows")
     u.add_argument("--save-stacks", action="store_true",
@@ -86,11 +90,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     u.add_argument("--group-file", type=Path, metavar="FILE",
                    help="bracket grouping that overrides EXIF: lines 'view: a.jpg b.jpg' or "
                         "JSON {view: [photos]} / [[photos], ...] (see above)")
-    u.add_argument("--response", choices=["ocio", "debevec"], default="ocio",
+    u.add_argument("--response", choices=["ocio", "debevec"], default=BracketOptions.response,
                    help="bracket camera response: the --input-space transform (default) or "
                         "recovered from each bracket (Debevec-Malik)")
-    u.add_argument("--panorama", choices=["auto", "on", "off"], default="auto",
-                   help="treat 2:1 photos as lat-long panoramas (default auto)")
+    u.add_argument("--panorama", choices=["auto", "on", "off"], default=UpliftOptions.panorama,
+                   help="treat 2:1 photos as lat-long panoramas "
+                        f"(default {UpliftOptions.panorama})")
     add_common(p, colour=True)
     p.set_defaults(handler=run)
 

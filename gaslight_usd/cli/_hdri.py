@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..chain import StageContext
+from ..chain import ChainRun
 from ..errors import InputError
+from ..export_options import HdriOptions
 from ..kinds import Artifact, Kind
 from ..outputs import check_output
+from ..registry import default_registry
 from ._common import add_common, emit, progress_from, settings_from
 from ._points import parse_point
 from ._preview import add_preview, check_preview, write_preview_for
@@ -50,9 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "to free space)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="PROBE.exr",
                    help="lat-long EXR to write (numbered when several --at)")
-    p.add_argument("--size", type=int, default=2048, metavar="N",
+    p.add_argument("--size", type=int, default=HdriOptions.size, metavar="N",
                    help="lat-long width in pixels (height N/2; cube faces N/4); "
-                        "default 2048")
+                        f"default {HdriOptions.size}")
     p.add_argument("--cube", action="store_true", help="also write the cube map")
     p.add_argument("--faces", action="store_true", help="also write six face files")
     p.add_argument("--tx", action="store_true",
@@ -67,7 +69,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..converters.export_hdri import export_hdri_stage
     from ..devices import resolve_device
 
     resolve_device(args.device)
@@ -82,10 +83,14 @@ def run(args: argparse.Namespace) -> int:
     settings = settings_from(args, device=args.device)
     options = {"at": args.at, "size": args.size, "cube": args.cube, "faces": args.faces,
                "tx": args.tx, "output_space": args.output_space}
-    ctx = StageContext(inputs={Kind.SPLATS: Artifact(Kind.SPLATS, args.splats)},
-                       output=args.output, settings=settings, options=options,
-                       progress=progress_from(args))
-    result = export_hdri_stage(ctx)
+    # Through the registry like every stage: report.json beside the EXRs, and a plug-in
+    # HDRI converter of higher priority is honoured.
+    folder = args.output.parent
+    runner = ChainRun(folder if str(folder) else Path("."), settings, default_registry(),
+                      progress_from(args))
+    runner.run([Artifact(Kind.SPLATS, args.splats)], [Kind.HDRI],
+               options={"hdri": options}, outputs={Kind.HDRI: args.output}, resume=False)
+    result = runner.records[-1]
     probes = result.metadata["probes"]
     text = "\n".join(f"probe at {tuple(p['position'])} ({p['chosen']}): "
                      + ", ".join(p["files"]) for p in probes)

@@ -9,8 +9,8 @@ from pathlib import Path
 from ..chain import ChainRun
 from ..errors import InputError
 from ..kinds import Artifact, Kind
+from ..poses.sfm import CAMERA_MODELS, MATCHERS, SfmOptions
 from ..registry import default_registry
-from ..sfm import CAMERA_MODELS, MATCHERS, SfmOptions
 from ._common import add_common, emit, progress_from, settings_from
 
 HELP = "solve camera poses from photos (SfM), or import and convert given poses"
@@ -61,19 +61,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="import these poses instead of solving (COLMAP model or "
                         "transforms.json)")
     s = p.add_argument_group("structure from motion")
-    s.add_argument("--matcher", choices=MATCHERS, default="exhaustive",
+    s.add_argument("--matcher", choices=MATCHERS, default=SfmOptions.matcher,
                    help="exhaustive: every pair (best for up to ~100 photos); sequential: "
                         "neighbours in file-name order (video frames)")
-    s.add_argument("--camera-model", choices=CAMERA_MODELS, default="SIMPLE_RADIAL",
+    s.add_argument("--camera-model", choices=CAMERA_MODELS, default=SfmOptions.camera_model,
                    help="COLMAP camera model (default SIMPLE_RADIAL: one focal length and "
                         "one radial distortion term; PINHOLE for rendered or undistorted "
                         "photos)")
     s.add_argument("--separate-cameras", action="store_true",
                    help="solve intrinsics per photo (default: one camera shared by all)")
-    s.add_argument("--min-registered", type=float, default=0.5, metavar="SHARE",
-                   help="fail when fewer than this share of the photos register "
-                        "(default 0.5); otherwise the rest are left out with a warning")
-    s.add_argument("--panorama", choices=("auto", "on", "off"), default="auto",
+    s.add_argument("--min-registered", type=float, default=SfmOptions.min_registered,
+                   metavar="SHARE", help="fail when fewer than this share of the photos "
+                   f"register (default {SfmOptions.min_registered}); otherwise the rest are "
+                   "left out with a warning")
+    s.add_argument("--panorama", choices=("auto", "on", "off"), default=SfmOptions.panorama,
                    help="treat photos as lat-long panoramas cut into 6 cube faces on one "
                         "centre: auto = photos with a 2:1 shape (default)")
     s.add_argument("--binary", action="store_true", help="write .bin files instead of .txt")
@@ -126,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
 def _import(args: argparse.Namespace) -> int:
     from ..outputs import check_output
     from ..poses import read_poses, write_poses
-    from ..sfm import triangulate_known_poses
+    from ..poses.sfm import triangulate_known_poses
 
     t0 = time.perf_counter()
     check_output(args.output, folder=args.output.suffix.lower() != ".json")

@@ -12,7 +12,7 @@ noise. Single photos of other views can be shot in between.
 
 The truth of a position is ``truth`` in the working space Linear Rec.709;
 an HDR view made from its photos at reference EV ``r`` (relative radiance as
-:mod:`gaslight_usd.views` defines it) should equal ``truth * gain * 2**r``
+:mod:`gaslight_usd.poses.views` defines it) should equal ``truth * gain * 2**r``
 (:meth:`Position.expected`). Nothing derived is committed: tests and the bench
 build shoots in a temporary folder.
 """
@@ -36,7 +36,6 @@ MIDDLE_TIME = 2.0 ** -7
 SHIFT = (1.0, -1.5)
 """Hand-held offset of the brightest frame, pixels (dy, dx)."""
 ISO = 100
-CLIP_ENCODED = 0.99
 NOMINAL_SHUTTERS = (
     1 / 8000, 1 / 6400, 1 / 5000, 1 / 4000, 1 / 3200, 1 / 2500, 1 / 2000, 1 / 1600,
     1 / 1250, 1 / 1000, 1 / 800, 1 / 640, 1 / 500, 1 / 400, 1 / 320, 1 / 250, 1 / 200,

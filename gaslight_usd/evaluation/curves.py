@@ -19,17 +19,11 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..colour import srgb_decode, srgb_encode
+
 CURVE_NAMES = ("srgb", "gamma2.2", "filmic")
 _HABLE = (0.15, 0.50, 0.10, 0.20, 0.02, 0.30)
 _HABLE_WHITE = 11.2
-
-
-def _srgb_encode(x: np.ndarray) -> np.ndarray:
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
-
-
-def _srgb_decode(v: np.ndarray) -> np.ndarray:
-    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))
 
 
 def _hable(x: np.ndarray) -> np.ndarray:
@@ -56,7 +50,7 @@ def _filmic_decode(v: np.ndarray) -> np.ndarray:
 
 _Fn = Callable[[np.ndarray], np.ndarray]
 _CURVES: dict[str, tuple[_Fn, _Fn]] = {
-    "srgb": (_srgb_encode, _srgb_decode),
+    "srgb": (srgb_encode, srgb_decode),
     "gamma2.2": (lambda x: np.power(x, 1 / 2.2), lambda v: np.power(v, 2.2)),
     "filmic": (_filmic_encode, _filmic_decode),
 }

@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..colour import REC709_Y
 from .pu21 import PSNR_PEAK, pu21_encode
 
-REC709_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+REC709_LUMINANCE = np.array(REC709_Y)
 """ITU-R BT.709 luminance weights (Y of linear R, G, B)."""
 PSNR_CAP_DB = 100.0
 """PSNR of identical images (MSE 0) is reported as this cap instead of infinity."""

@@ -38,13 +38,13 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import write_text
-from ..cameras import PinholeCamera
+from ..cameras import PinholeCamera, is_latlong, sample_latlong
 from ..errors import InputError
 from ..imageio import read_image, write_exr
 from ..locate import shared_hdri_dir
 from . import curves
 from .metrics import luminance
-from .resample import area_resize, sample_latlong
+from .resample import area_resize
 
 SHARED_CLAMP_LEVELS: dict[str, float] = {
     "city": 32000.0, "interior": 32000.0, "sunrise": 32000.0, "studio": 100.0,
@@ -105,7 +105,7 @@ def load_source(path: str | Path, clamp_level: float | None = None,
         if clamp_level is None and peak >= HALF_CLAMP:
             clamp_level = peak
     if panorama is None:
-        panorama = pixels.shape[1] == 2 * pixels.shape[0]
+        panorama = is_latlong(pixels.shape[1], pixels.shape[0])
     return HDRSource(name=path.stem, pixels=pixels, colour_space=image.colour_space,
                      panorama=panorama, clamp_level=clamp_level, path=path)
 

@@ -59,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from ..cameras import is_latlong
 from ..errors import GaslightError
 from .metrics import (
     angular_error_deg,
@@ -133,11 +134,6 @@ def load_mitsuba() -> Any:
     return mi
 
 
-def is_panorama(image: np.ndarray) -> bool:
-    """A 2:1 image is taken as a lat-long panorama."""
-    return image.shape[1] == 2 * image.shape[0]
-
-
 def environment_from_perspective(image: np.ndarray, env_height: int = 256) -> np.ndarray:
     """Project a perspective image onto the 90-degree partial hemisphere (see module doc).
 
@@ -161,7 +157,7 @@ def environment_for(image: np.ndarray, env_height: int = 256, kind: str = "auto"
     """The environment map an image makes: ``kind`` is auto, panorama or perspective."""
     if kind not in ("auto", "panorama", "perspective"):
         raise ValueError(f"kind must be auto, panorama or perspective, not {kind!r}")
-    pano = is_panorama(image) if kind == "auto" else kind == "panorama"
+    pano = is_latlong(image.shape[1], image.shape[0]) if kind == "auto" else kind == "panorama"
     if pano:
         return environment_from_panorama(image, env_height)
     return environment_from_perspective(image, env_height)

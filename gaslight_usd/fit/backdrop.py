@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
+from ..colour import luminance_weights
 from ..splats import SplatScene, logit, rgb_to_sh_dc
 
 BOX_QUANTILE = 0.005
@@ -60,11 +61,13 @@ def _seen(points: np.ndarray, cameras: list[PinholeCamera]) -> np.ndarray:
 
 
 def unseen_backdrop(scene: SplatScene, cameras: list[PinholeCamera], count: int,
-                    room: int | None = None) -> SplatScene:
+                    room: int | None = None, y_weights: np.ndarray | None = None
+                    ) -> SplatScene:
     """Flat tiles on the splats' box where no camera looks (see the module doc); may be empty.
 
     ``count`` tiles cover the whole box; at most ``room`` are kept (the grid is
-    made coarser to fit).
+    made coarser to fit). ``y_weights``: the scene's luminance weights (default
+    Rec.709's), to tell lamps from surfaces.
     """
     opaque = scene.opacities > 0.3
     room = count if room is None else min(room, count)
@@ -83,7 +86,8 @@ def unseen_backdrop(scene: SplatScene, cameras: list[PinholeCamera], count: int,
     tiles, axes = tiles[hidden], axes[hidden]
     if not len(tiles) or len(tiles) > room:
         return scene.subset(np.zeros(0, np.int64))
-    lum = colours @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lum = colours @ (luminance_weights() if y_weights is None
+                     else np.asarray(y_weights, np.float32))
     donor = lum <= LAMP_RATIO * max(float(np.median(lum)), 1e-12)
     centres, colours = centres[donor], colours[donor]
     k = min(DONORS, len(centres))

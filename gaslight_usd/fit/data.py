@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 
 from ..cameras import PinholeCamera
-from ..colmap import ColmapModel
 from ..colour import luminance_weights
 from ..errors import InputError
 from ..imageio import read_channel, read_header, read_image
 from ..poses import read_poses
+from ..poses.colmap import ColmapModel
+from ..poses.views import CLIP_FLOOR_CHANNEL, hdr_view_paths
 from ..resize import area_resize, fit_within
-from ..views import CLIP_FLOOR_CHANNEL, hdr_view_paths
 
 
 @dataclass

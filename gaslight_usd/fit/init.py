@@ -25,8 +25,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
-from ..colmap import ColmapModel
+from ..colour import luminance_weights
 from ..poses import colour_points
+from ..poses.colmap import ColmapModel
 
 
 def neighbour_scales(points: np.ndarray) -> np.ndarray:
@@ -42,7 +43,11 @@ BRIGHT_RATIO = 64.0
 (windows, dimmer and flat, are left to the surface fill: they lie on walls)."""
 BRIGHT_SHARE = 0.05
 """Share of the initial points placed on light sources (when there are any)."""
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+
+def _luma(y_weights: np.ndarray | None) -> np.ndarray:
+    """Luminance weights as float64 (the views' own, else Rec.709's)."""
+    return np.asarray(luminance_weights() if y_weights is None else y_weights, np.float64)
 
 
 def _sample(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -107,7 +112,8 @@ def plane_sweep_points(cameras: list[PinholeCamera], images: list[np.ndarray], c
 
 def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[PinholeCamera],
                      images: list[np.ndarray], floors: list[np.ndarray | None],
-                     guessed: np.ndarray | None = None) -> np.ndarray:
+                     guessed: np.ndarray | None = None,
+                     y_weights: np.ndarray | None = None) -> np.ndarray:
     """``colours`` of the ``guessed`` points (default: all), raised to the brightest
     *measured* sample of each point in any view.
 
@@ -118,11 +124,13 @@ def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[Pinh
     (``fast``: a few dozen steps on that one view) cannot climb the stops from the
     guess. The brightest such sample wins (occluders only make samples darker);
     a point no view measured, or one whose own pixel was measured, keeps its colour.
+    ``y_weights``: the views' luminance weights (default Rec.709's).
     """
+    luma = _luma(y_weights)
     best = np.asarray(colours, np.float32).copy()
     if guessed is not None and not guessed.any():
         return best
-    best_y = best @ LUMA
+    best_y = best @ luma
     for cam, image, floor in zip(cameras, images, floors, strict=True):
         uv, z = cam.project(points)
         inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & \
@@ -130,7 +138,7 @@ def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[Pinh
         sample = _sample(image, uv)
         if floor is not None:
             inside &= _sample(floor[..., None], uv)[:, 0] <= 0
-        y = sample @ LUMA
+        y = sample @ luma
         take = inside & (y > best_y)
         if guessed is not None:
             take &= guessed
@@ -140,8 +148,8 @@ def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[Pinh
 
 def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
                   rng: np.random.Generator, ratio: float = BRIGHT_RATIO,
-                  depth_steps: int = 48, floors: list[np.ndarray | None] | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  depth_steps: int = 48, floors: list[np.ndarray | None] | None = None,
+                  y_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Points on light sources: pixels over ``ratio`` x the median of all views, plane-swept.
 
     Lamps and windows have no features to triangulate and sit off the
@@ -149,9 +157,11 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
     brightness makes their depth easy to find by photo-consistency. With the
     views' clip ``floors``, a point swept from a clipped pixel takes its brightest
     measured sample (:func:`measured_colours`); without them every pixel counts as
-    measured and keeps its own colour.
+    measured and keeps its own colour. ``y_weights``: the views' luminance weights
+    (default Rec.709's).
     """
-    lum = [im @ LUMA for im in images]
+    luma = _luma(y_weights)
+    lum = [im @ luma for im in images]
     level = ratio * float(np.median(np.concatenate([y[::4, ::4].ravel() for y in lum])))
     where = [np.argwhere(y > level) for y in lum]
     total = sum(len(w) for w in where)
@@ -174,7 +184,8 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
     pts, cols = np.concatenate(pts), np.concatenate(cols).astype(np.float32)
     if floors is not None:
-        cols = measured_colours(pts, cols, cameras, images, floors, np.concatenate(clipped))
+        cols = measured_colours(pts, cols, cameras, images, floors, np.concatenate(clipped),
+                                luma)
     return pts, cols
 
 
@@ -230,13 +241,14 @@ def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
 
 def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: list[np.ndarray],
                    names: list[str], count: int, rng: np.random.Generator,
-                   floors: list[np.ndarray | None] | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, str]:
+                   floors: list[np.ndarray | None] | None = None,
+                   y_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """Points, HDR colours and how they were made.
 
     "sparse points + surface fill" when the model has points, else "plane sweep".
     ``floors``: the views' clip floors (None: every pixel measured), for the lights'
-    colours (:func:`bright_points`).
+    colours (:func:`bright_points`); ``y_weights``: the views' luminance weights
+    (default Rec.709's), to find the lights.
     """
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
@@ -245,7 +257,7 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
             pick = np.sort(rng.choice(len(pts), count // 2, replace=False))
             pts, colours = pts[pick], colours[pick]
         lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng,
-                                              floors=floors)
+                                              floors=floors, y_weights=y_weights)
         seen = _seen_by(model, names)
         fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
                                                  cameras, images,

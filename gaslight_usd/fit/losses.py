@@ -6,7 +6,7 @@ plus ``ssim_weight`` x (1 - SSIM) on both images clamped to [0, 1]; an optional
 bright regions alike.
 
 Clipped pixels are bounds, not targets: where the photo clipped (a view's clip
-floor, :data:`gaslight_usd.views.CLIP_FLOOR_CHANNEL`, is > 0) the photo only says
+floor, :data:`gaslight_usd.poses.views.CLIP_FLOOR_CHANNEL`, is > 0) the photo only says
 the luminance is at least the floor; the uplift's fill there is a guess. So in
 those pixels the loss is ``relu(floor - Y(pred))`` (any radiance above what the
 photo recorded is free) plus ``fill_weight`` x a pull in log radiance towards the

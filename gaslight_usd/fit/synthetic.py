@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..cameras import PinholeCamera
-from ..colmap import ColmapModel
+from ..poses.colmap import ColmapModel
 from ..render import render
 from ..splats import SplatScene
 from .data import FitData

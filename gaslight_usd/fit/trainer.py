@@ -36,6 +36,7 @@ import numpy as np
 import torch
 
 from ..cameras import PinholeCamera
+from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..progress import Progress
@@ -74,17 +75,6 @@ def scene_extent(data: FitData, train: list[int]) -> float:
     return max(extent, 1e-2)
 
 
-def _luminance_weights(space: str) -> np.ndarray:
-    """Y weights of the views' colour space (Rec.709's when it is unnamed or unknown)."""
-    from ..colour import luminance_weights
-
-    try:
-        return luminance_weights(space) if space else np.array([0.2126, 0.7152, 0.0722],
-                                                               np.float32)
-    except InputError:  # an in-memory scene with a made-up space name
-        return np.array([0.2126, 0.7152, 0.0722], np.float32)
-
-
 def _order(step: int, n: int, seed: int) -> int:
     """The view of a step: a fresh seeded permutation of the training views each epoch."""
     epoch, pos = divmod(step, n)
@@ -109,7 +99,10 @@ class Trainer:
         self.floors = [None if not config.clip_bounds or (f := data.floor(i)) is None
                        else torch.as_tensor(f, device=device)
                        for i in range(len(data.images))]
-        self.y_weights = torch.as_tensor(_luminance_weights(data.colour_space), device=device)
+        # Rec.709's weights when the space is unnamed or unknown (in-memory scenes)
+        self.y_weights = torch.as_tensor(luminance_weights(data.colour_space or None,
+                                                           fallback=True), device=device)
+        # the training views' mean: the random background's scale and the idle-prune level
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
 
@@ -123,7 +116,8 @@ class Trainer:
         names = [self.data.names[i] for i in self.train]
         floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
-                                        min(cfg.init_points, cfg.budget), rng, floors)
+                                        min(cfg.init_points, cfg.budget), rng, floors,
+                                        self.y_weights.cpu().numpy())
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
@@ -254,12 +248,14 @@ class Trainer:
         return min(self.cfg.backdrop_tiles // 2, self.cfg.budget // 10)
 
     def _prune_idle(self) -> int:
+        """Prune splats that contribute next to nothing to the training views, their
+        radiance measured against those views' mean level (:attr:`mean_level`)."""
         degree = self.active_degree()
         cams = self.cameras()
         weight, radiance = contributions(self.model.params(degree),
                                          [cams[i] for i in self.train], degree)
-        mean_level = float(np.mean([im.mean() for im in self.data.images])) or 1.0
-        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / mean_level, min=1.0)
+        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
+                                     min=1.0)
         idle = score < MIN_CONTRIBUTION
         self.model.prune(idle)
         return int(idle.sum())
@@ -276,7 +272,29 @@ class Trainer:
 
     # -- the loop ----------------------------------------------------------------------
     def run(self, resume: bool = False) -> FitResult:
-        cfg = self.cfg
+        """Fit: train steps, a densify round every ``densify_every`` steps inside the
+        densify window (held-out check, patience, stop at the target error), then
+        :meth:`_finish` (prune, SH degree, backdrop, lights' power, metrics)."""
+        resumed, init_seconds = self._start(resume)
+        t0 = time.perf_counter() - self.elapsed
+        stop_reason = "iterations"
+        while self.step < self.cfg.iterations:
+            loss = self._train_step()
+            if self._densify_due():
+                if self._held_out_round(t0):
+                    stop_reason = "target error"
+                    break
+                self._densify_and_prune()
+            self.progress.update(self.step, self.cfg.iterations, loss=loss,
+                                 splats=self.model.count)
+            if self.checkpoint is not None and self.step % self.cfg.checkpoint_every == 0:
+                self.elapsed = time.perf_counter() - t0
+                save_checkpoint(self.checkpoint, self._state())
+        return self._finish(t0, stop_reason, resumed, init_seconds)
+
+    def _start(self, resume: bool) -> tuple[bool, float]:
+        """Continue from the checkpoint when asked and it matches, else a fresh start;
+        returns (resumed, seconds the fresh start took)."""
         resumed = False
         if resume and self.checkpoint is not None:
             state = load_checkpoint(self.checkpoint)
@@ -288,74 +306,85 @@ class Trainer:
             self._fresh()
         elif self.step:
             self.progress.message(f"resuming at step {self.step}")
-        init_seconds = time.perf_counter() - init_start
-        t0 = time.perf_counter() - self.elapsed
+        return resumed, time.perf_counter() - init_start
+
+    def _train_step(self) -> float:
+        """One optimiser step on the step's view; gathers the densify gradients. Returns
+        the loss."""
+        cfg = self.cfg
+        frac = self.step / max(cfg.iterations - 1, 1)
+        lr0, lr1 = cfg.lr_means * self.extent, cfg.lr_means_final * self.extent
+        self.model.set_lr("means", lr0 * (lr1 / lr0) ** frac)
+        k = _order(self.step, len(self.train), self.seed)
+        view = self.train[k]
+        cam = self.data.cameras[view]
+        out = render(self.model.params(self.active_degree()), cam,
+                     background=self._training_background(), sh_degree=self.active_degree(),
+                     pose=self.refiner.pose(k) if self.refiner else None)
+        loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight,
+                        self.floors[view], self.y_weights, cfg.clip_fill_weight)
+        if cfg.elongation_weight:
+            loss = loss + cfg.elongation_weight * elongation_penalty(
+                self.model.t["log_scales"], cfg.elongation_limit)
+        if not bool(torch.isfinite(loss)):
+            raise FitDiverged(
+                f"the fit diverged at step {self.step + 1} of {cfg.iterations} on view "
+                f"{self.data.names[view]} (loss {float(loss)}); nothing was written. A "
+                "view with NaN or huge values, or a learning rate too high for this "
+                "scene: check the views with 'gaslight2usd info', try another --seed")
+        loss.backward()
+        with torch.no_grad():
+            g = out.means2d.grad
+            if g is not None and len(g):
+                g = g * torch.tensor([cam.width / 2.0, cam.height / 2.0], device=g.device)
+                self.grad_sum.index_add_(0, out.index, g.norm(dim=1))
+                self.grad_count.index_add_(0, out.index,
+                                           torch.ones(len(out.index), device=g.device))
+        self.model.step()
+        if self.refiner is not None:
+            self.refiner.step(k)
+        self.step += 1
+        return float(loss.detach())
+
+    def _densify_due(self) -> bool:
+        """Whether this step ends a densify round (inside the densify window)."""
+        cfg = self.cfg
         first = int(cfg.densify_from * cfg.iterations)
         last = int(cfg.densify_until * cfg.iterations)
-        lr0, lr1 = cfg.lr_means * self.extent, cfg.lr_means_final * self.extent
-        stop_reason = "iterations"
-        while self.step < cfg.iterations:
-            frac = self.step / max(cfg.iterations - 1, 1)
-            self.model.set_lr("means", lr0 * (lr1 / lr0) ** frac)
-            k = _order(self.step, len(self.train), self.seed)
-            view = self.train[k]
-            cam = self.data.cameras[view]
-            out = render(self.model.params(self.active_degree()), cam,
-                         background=self._training_background(), sh_degree=self.active_degree(),
-                         pose=self.refiner.pose(k) if self.refiner else None)
-            loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight,
-                            self.floors[view], self.y_weights, cfg.clip_fill_weight)
-            if cfg.elongation_weight:
-                loss = loss + cfg.elongation_weight * elongation_penalty(
-                    self.model.t["log_scales"], cfg.elongation_limit)
-            if not bool(torch.isfinite(loss)):
-                raise FitDiverged(
-                    f"the fit diverged at step {self.step + 1} of {cfg.iterations} on view "
-                    f"{self.data.names[view]} (loss {float(loss)}); nothing was written. A "
-                    "view with NaN or huge values, or a learning rate too high for this "
-                    "scene: check the views with 'gaslight2usd info', try another --seed")
-            loss.backward()
-            with torch.no_grad():
-                g = out.means2d.grad
-                if g is not None and len(g):
-                    g = g * torch.tensor([cam.width / 2.0, cam.height / 2.0], device=g.device)
-                    self.grad_sum.index_add_(0, out.index, g.norm(dim=1))
-                    self.grad_count.index_add_(0, out.index,
-                                               torch.ones(len(out.index), device=g.device))
-            self.model.step()
-            if self.refiner is not None:
-                self.refiner.step(k)
-            self.step += 1
-            if first <= self.step <= last and self.step % cfg.densify_every == 0:
-                if self.held and self.densifying:
-                    err = self.evaluate(self.held, self.active_degree())["log_lum_rmse_stops"]
-                    self.history.append({"step": self.step, "splats": self.model.count,
-                                         "seconds": round(time.perf_counter() - t0, 2),
-                                         "held_out_log_lum_rmse": err})
-                    idle = self.last_error is not None and \
-                        err > self.last_error * (1 - cfg.min_improvement)
-                    self.idle_rounds = self.idle_rounds + 1 if idle else 0
-                    if self.idle_rounds >= cfg.patience:
-                        self.densifying = False
-                        self.progress.message(f"step {self.step}: held-out error stopped "
-                                              f"improving ({err:.4f}); no more splats added")
-                    self.last_error = err if self.last_error is None else min(err,
-                                                                              self.last_error)
-                    if cfg.target_error and err <= cfg.target_error:
-                        stop_reason = "target error"
-                        break
-                self._densify_and_prune()
-            self.progress.update(self.step, cfg.iterations, loss=float(loss.detach()),
-                                 splats=self.model.count)
-            if self.checkpoint is not None and self.step % cfg.checkpoint_every == 0:
-                self.elapsed = time.perf_counter() - t0
-                save_checkpoint(self.checkpoint, self._state())
+        return first <= self.step <= last and self.step % cfg.densify_every == 0
+
+    def _held_out_round(self, t0: float) -> bool:
+        """The held-out check of a densify round: record the error, stop adding splats
+        after ``patience`` rounds without improvement. Returns whether the target error
+        is reached (the fit stops)."""
+        cfg = self.cfg
+        if not (self.held and self.densifying):
+            return False
+        err = self.evaluate(self.held, self.active_degree())["log_lum_rmse_stops"]
+        self.history.append({"step": self.step, "splats": self.model.count,
+                             "seconds": round(time.perf_counter() - t0, 2),
+                             "held_out_log_lum_rmse": err})
+        idle = self.last_error is not None and err > self.last_error * (1 - cfg.min_improvement)
+        self.idle_rounds = self.idle_rounds + 1 if idle else 0
+        if self.idle_rounds >= cfg.patience:
+            self.densifying = False
+            self.progress.message(f"step {self.step}: held-out error stopped "
+                                  f"improving ({err:.4f}); no more splats added")
+        self.last_error = err if self.last_error is None else min(err, self.last_error)
+        return bool(cfg.target_error and err <= cfg.target_error)
+
+    def _finish(self, t0: float, stop_reason: str, resumed: bool,
+                init_seconds: float) -> FitResult:
+        """Prune idle splats, choose the SH degree, add the backdrop and the clipped
+        lights' power, score the result and save the last checkpoint."""
+        cfg = self.cfg
         pruned = self._prune_idle()
         degree, scores = self._choose_degree()
         scene = self.model.to_scene(degree, {})
         cams = self.cameras()
         backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
-                                   cfg.backdrop_tiles, room=cfg.budget - scene.count)
+                                   cfg.backdrop_tiles, room=cfg.budget - scene.count,
+                                   y_weights=self.y_weights.cpu().numpy())
         if backdrop.count:
             scene = concatenate(scene, backdrop)
         lights = []

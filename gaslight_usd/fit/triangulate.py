@@ -4,7 +4,7 @@ Given poses (a synthetic set, a capture rig, a ``transforms.json``) often come
 without points, and a fit started from guessed depths learns poor geometry.
 The HDR views are tone-mapped to 8-bit (one exposure for all views, so
 matching sees consistent brightness; sRGB encoding) and handed to
-:func:`gaslight_usd.sfm.triangulate_known_poses`, which matches SIFT features
+:func:`gaslight_usd.poses.sfm.triangulate_known_poses`, which matches SIFT features
 and triangulates them with the poses held fixed. No photos are needed.
 """
 
@@ -16,26 +16,30 @@ from pathlib import Path
 
 import numpy as np
 
-from ..colmap import ColmapModel
+from ..colour import luminance_weights, srgb_encode
 from ..errors import GaslightError
 from ..imageio import read_image
+from ..poses.colmap import ColmapModel
 from ..progress import Progress
 
 MID_GREY = 0.18
 """Where the median luminance of all views lands after the shared exposure."""
-LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 
 
 def tone_map_8bit(image: np.ndarray, scale: float) -> np.ndarray:
     """(H, W, 3) linear HDR x ``scale`` -> sRGB-encoded uint8, highlights clipped."""
     x = np.clip(np.asarray(image, np.float32) * scale, 0.0, 1.0)
-    v = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    v = srgb_encode(x)
     return np.round(v * 255.0).astype(np.uint8)
 
 
-def shared_scale(images: list[np.ndarray]) -> float:
-    """Exposure putting the median luminance of all views at mid grey."""
-    lum = np.concatenate([(im[::4, ::4] @ LUMA).ravel() for im in images])
+def shared_scale(images: list[np.ndarray], y_weights: np.ndarray | None = None) -> float:
+    """Exposure putting the median luminance of all views at mid grey.
+
+    ``y_weights``: the views' colour space's luminance weights (default Rec.709's).
+    """
+    weights = luminance_weights() if y_weights is None else y_weights
+    lum = np.concatenate([(im[::4, ::4] @ weights).ravel() for im in images])
     median = float(np.median(lum[lum > 0])) if (lum > 0).any() else 1.0
     return MID_GREY / median
 
@@ -65,14 +69,16 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
     """
     import OpenImageIO as oiio
 
-    from ..sfm import SfmOptions, triangulate_known_poses
+    from ..poses.sfm import SfmOptions, triangulate_known_poses
 
     progress = progress or Progress(quiet=True)
     work = Path(tempfile.mkdtemp(prefix="gaslight-fit-tri-"))
     try:
-        images = {name: read_image(view_paths[name]).pixels for name in model.names}
+        read = {name: read_image(view_paths[name]) for name in model.names}
+        images = {name: image.pixels for name, image in read.items()}
         model = _model_at_view_size(model, images)
-        scale = shared_scale(list(images.values()))
+        space = next(iter(read.values())).colour_space if read else None
+        scale = shared_scale(list(images.values()), luminance_weights(space, fallback=True))
         for name, image in images.items():
             target = work / name
             target.parent.mkdir(parents=True, exist_ok=True)

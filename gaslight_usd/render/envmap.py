@@ -45,23 +45,18 @@ from functools import lru_cache
 import numpy as np
 import torch
 
-from ..cameras import PinholeCamera, direction_to_latlong, latlong_directions
+from ..cameras import (
+    CUBE_FACE_AXES,
+    CUBE_FACES,
+    PinholeCamera,
+    bilinear,
+    latlong_directions,
+    sample_latlong,
+)
 from ..splats import SplatScene
 from . import SplatParams, render
 
-CUBE_FACES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 PROBE_NEAR = 1e-3
-
-_X, _Y, _Z = np.eye(3)
-FACE_AXES = {
-    "+X": (_Z, -_Y, _X),
-    "-X": (-_Z, -_Y, -_X),
-    "+Y": (_X, -_Z, _Y),
-    "-Y": (_X, _Z, -_Y),
-    "+Z": (-_X, -_Y, _Z),
-    "-Z": (_X, -_Y, -_Z),
-}
-"""Face -> (image right, image down, view direction) as world unit vectors."""
 
 
 def cube_face_cameras(position, size: int) -> list[PinholeCamera]:
@@ -72,7 +67,7 @@ def cube_face_cameras(position, size: int) -> list[PinholeCamera]:
     f = (size - 1) / 2.0
     cams = []
     for name in CUBE_FACES:
-        R = np.stack(FACE_AXES[name])
+        R = np.stack(CUBE_FACE_AXES[name])
         cams.append(PinholeCamera(size, size, f, f, size / 2.0, size / 2.0, R, -R @ pos,
                                   name=name))
     return cams
@@ -102,7 +97,7 @@ def latlong_face_size(width: int) -> int:
 
 def _corner_basis(forward: np.ndarray) -> np.ndarray:
     """(3, 3) rows image right, image down, forward for a view along ``forward``."""
-    right = np.cross(_Y, forward)
+    right = np.cross(np.array([0.0, 1.0, 0.0]), forward)
     right /= np.linalg.norm(right)
     return np.stack([right, np.cross(forward, right), forward])
 
@@ -189,29 +184,11 @@ def render_latlong(scene: SplatScene | SplatParams, position, width: int,
             rot = np.asarray(cam.R) if rotation is None else np.asarray(cam.R) @ rotation
             placed = replace(cam, R=rot, t=-rot @ pos)
             image = render(params, placed, background=0.0, near=near).image.cpu().numpy()
-            out[idx] += w * _bilinear(image, x, y, wrap_x=False)
+            out[idx] += w * bilinear(image, x, y, wrap_x=False)
     out = out.reshape(fine // 2, fine, 3)
     if s > 1:
         out = out.reshape(width // 2, s, width, s, 3).mean(axis=(1, 3), dtype=np.float64)
     return out.astype(np.float32)
-
-
-def _bilinear(image: np.ndarray, x: np.ndarray, y: np.ndarray, wrap_x: bool) -> np.ndarray:
-    """Sample (H, W, C) at continuous pixel coordinates (centres at +0.5)."""
-    h, w = image.shape[:2]
-    fx, fy = x - 0.5, np.clip(y - 0.5, 0.0, h - 1)
-    if not wrap_x:
-        fx = np.clip(fx, 0.0, w - 1)
-    x0, y0 = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
-    ax, ay = (fx - x0)[..., None], (fy - y0)[..., None]
-    y1 = np.minimum(y0 + 1, h - 1)
-    if wrap_x:
-        x0, x1 = x0 % w, (x0 + 1) % w
-    else:
-        x1 = np.minimum(x0 + 1, w - 1)
-    top = image[y0, x0] * (1 - ax) + image[y0, x1] * ax
-    bottom = image[y1, x0] * (1 - ax) + image[y1, x1] * ax
-    return (top * (1 - ay) + bottom * ay).astype(np.float32)
 
 
 def _face_lookup(directions: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -220,7 +197,7 @@ def _face_lookup(directions: np.ndarray, size: int) -> tuple[np.ndarray, np.ndar
     axis = np.argmax(np.abs(d), axis=-1)
     sign_neg = np.take_along_axis(d, axis[..., None], -1)[..., 0] < 0
     face = axis * 2 + sign_neg
-    axes = np.stack([np.stack(FACE_AXES[n]) for n in CUBE_FACES])  # (6, 3, 3)
+    axes = np.stack([np.stack(CUBE_FACE_AXES[n]) for n in CUBE_FACES])  # (6, 3, 3)
     basis = axes[face]  # (..., 3, 3): right, down, forward
     local = np.einsum("...ij,...j->...i", basis, d)
     f, c = (size - 1) / 2.0, size / 2.0
@@ -241,15 +218,13 @@ def cube_to_latlong(faces: np.ndarray, width: int) -> np.ndarray:
     x = np.clip(x, 0.5, size - 0.5)
     y = np.clip(y, 0.5, size - 0.5) + face * size
     stacked = faces.reshape(6 * size, size, -1)
-    return _bilinear(stacked, x, y, wrap_x=False)
+    return bilinear(stacked, x, y, wrap_x=False)
 
 
 def latlong_to_cube(image: np.ndarray, size: int) -> np.ndarray:
     """Resample a lat-long panorama (H, W, C) to cube faces (6, size, size, C)."""
     image = np.asarray(image, np.float32)
-    h, w = image.shape[:2]
     out = []
     for cam in cube_face_cameras(np.zeros(3), size):
-        xy = direction_to_latlong(cam.ray_directions(), w, h)
-        out.append(_bilinear(image, xy[..., 0], xy[..., 1], wrap_x=True))
+        out.append(sample_latlong(image, cam.ray_directions()))
     return np.stack(out)

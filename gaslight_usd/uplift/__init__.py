@@ -6,8 +6,10 @@
   ``diffusion``, ``oracle``, ``reexpose``);
 * :mod:`.bracket` - real exposure brackets: grouping, response, alignment;
 * :mod:`.panorama` - lat-long photos uplifted face by face on a cube;
-* :mod:`.pipeline` - photo set -> HDR views (used by the converters);
-* :mod:`.calibrate` - reproducible calibration of the fast predictor.
+* :mod:`.pipeline` - photo set -> HDR views (used by the converters).
+
+The fast predictor's calibration and the uplift bench's extra methods are
+measurement code: :mod:`gaslight_usd.bench.calibrate`, :mod:`gaslight_usd.bench.uplift_methods`.
 """
 
 from .curves import GAMMA22, SRGB, Curve, curve_by_name, input_transform

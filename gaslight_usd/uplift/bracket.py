@@ -22,7 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..errors import InputError
-from ..views import View
+from ..poses.views import View
 from .curves import Curve, lut_curve
 from .grouping import (  # noqa: F401 (re-exported: the bracket API in one place)
     MAX_GAP_S,
@@ -40,6 +40,21 @@ from .grouping import (  # noqa: F401 (re-exported: the bracket API in one place
 )
 from .merge import merge_stack
 from .similarity import THUMB_SIDE, Thumbnail, similarity, thumbnail
+
+
+@dataclass
+class BracketOptions:
+    """The options of the bracket merge (converter ``uplift.bracket``); the CLI reads
+    its defaults from here."""
+
+    group_file: str | None = None
+    """A grouping file (one view per line, or JSON) overriding the EXIF grouping."""
+    max_size: int = 0
+    """Long side (pixels) photos are shrunk to (0: as shot)."""
+    response: str = "ocio"
+    """ocio: the input space's curve; debevec: recovered from each bracket."""
+    align: bool = True
+    save_stacks: bool = False
 
 
 def photo_of_view(view: View) -> Photo:
@@ -109,7 +124,7 @@ def find_brackets(paths: Sequence[Path], input_space: str, working_space: str,
     ``long_side`` (the similarity compares thumbnails of :data:`THUMB_SIDE` blocks, so
     a 12 MP photo need not stay whole in memory: 8 of them are 1.1 GB as float32).
     """
-    from ..views import load_views
+    from ..poses.views import load_views
 
     photos = [read_photo(Path(p)) for p in paths]
     wanted = sorted(bracket_candidates(photos))

@@ -49,14 +49,11 @@ def _gamma(g: float) -> Curve:
 
 
 def _srgb_to_linear(v: Array) -> Array:
-    v = np.clip(v, 0.0, None)
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    return colour.srgb_decode(np.clip(v, 0.0, None)).astype(np.float32)
 
 
 def _srgb_to_encoded(x: Array) -> Array:
-    x = np.clip(x, 0.0, None)
-    return np.where(x <= 0.0031308, x * 12.92,
-                    1.055 * np.power(x, 1.0 / 2.4) - 0.055).astype(np.float32)
+    return colour.srgb_encode(np.clip(x, 0.0, None)).astype(np.float32)
 
 
 GAMMA22 = _gamma(2.2)

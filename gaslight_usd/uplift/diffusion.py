@@ -30,7 +30,6 @@ import numpy as np
 
 from ..errors import InputError
 from .curves import Curve
-from .predictors import register_predictor
 
 log = logging.getLogger(__name__)
 ENV_WEIGHTS = "GASLIGHT_WEIGHTS"
@@ -148,5 +147,9 @@ class DiffusionPredictor:
         return self._run(encoded, PROMPTS["brighter"])
 
 
-register_predictor("diffusion", DiffusionPredictor,
-                   "GaSLight diffusion model (optional diffusers; bring your own weights)")
+PREDICTORS = {
+    "diffusion": (DiffusionPredictor,
+                  "GaSLight diffusion model (optional diffusers; bring your own weights)"),
+}
+"""The predictors this module offers: name -> (factory, description); see
+:mod:`.predictors`."""

@@ -3,9 +3,9 @@
 No downloaded weights, numpy only, well under a second per megapixel.
 
 Model. The photo is linearised through its curve; a pixel is clipped when its
-brightest channel reaches ``CLIP``. Clipped pixels are grouped into regions
+brightest channel reaches ``CLIP_LEVEL``. Clipped pixels are grouped into regions
 (8-connected components) and a two-layer perceptron (:data:`PARAMS_FILE`, a
-few KB, trained by ``python -m gaslight_usd.uplift.calibrate``) predicts, for
+few KB, trained by ``python -m gaslight_usd.bench.calibrate``) predicts, for
 every region, ``log2`` of its mean brightest linear channel (relative to the
 photo's white, so 0 means "just white") from region features:
 
@@ -69,10 +69,10 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from ..colour import CLIP_LEVEL, REC709_Y
+from ..errors import InputError
 from .curves import Curve
-from .predictors import register_predictor
 
-CLIP = 0.99
 """Encoded level from which a channel counts as clipped."""
 WHITE = 0.9
 """Encoded level counted as "near white" in the glow rings (the recursion's threshold)."""
@@ -89,7 +89,7 @@ On a panorama it never saw, the perceptron's full estimate overshoots often
 enough to cost more than it gains (an overestimated "sun" in a near-white sky
 costs far more relight PSNR than an underestimate). The factor is chosen by the
 leave-one-panorama-out gain over all the calibration panoramas
-(``python -m gaslight_usd.uplift.calibrate`` scores every factor of
+(``python -m gaslight_usd.bench.calibrate`` scores every factor of
 ``calibrate.SHRINKS``), and checked on the uplift bench, where
 ``recursive-fast-unshrunk`` is charted beside it and ``recursive-fast-lopo``
 scores each panorama with the model fitted without it
@@ -111,7 +111,8 @@ LEGACY_FEATURES = ("log_area", "log_max_depth", "log_compact", "log_ring0", "log
 """The features of a model whose parameters do not name theirs."""
 FEATURES = LEGACY_FEATURES[:-1] + ("area_share", "row", "log_p99", "bright_frac", "one")
 """Every feature :func:`region_features` computes; a model uses those it names."""
-LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)
+LUM = np.array(REC709_Y, np.float32)
+"""Photos are sRGB-encoded: Rec.709 primaries."""
 
 
 @dataclass
@@ -149,7 +150,7 @@ def _window(mask: np.ndarray, margin: int) -> tuple[slice, slice]:
             slice(max(cols[0] - margin, 0), min(cols[-1] + margin + 1, w)))
 
 
-def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP
+def region_features(linear: np.ndarray, encoded: np.ndarray, clip: float = CLIP_LEVEL
                     ) -> RegionFeatures | None:
     """Features of every clipped region of one photo, or None if nothing is clipped."""
     full_peak = channel_max(encoded)
@@ -348,7 +349,7 @@ def fill_clipped(linear: np.ndarray, encoded: np.ndarray, regions: RegionFeature
     lab = regions.labels[regions.mask] - 1
     enc = encoded[regions.mask]
     lin = linear[regions.mask]
-    clipped_ch = enc >= CLIP
+    clipped_ch = enc >= CLIP_LEVEL
     ring = regions.chroma[lab]
     share = np.ones(len(regions.area), np.float32) if ring_share is None else ring_share
     colour = share[lab, None] * ring + (1.0 - share[lab, None])
@@ -424,9 +425,17 @@ class FastPredictor:
         return curve.reexpose(encoded, 2.0)
 
 
-def _factory(params: str | Path | None = None, **_: object) -> FastPredictor:
+def _factory(params: str | Path | None = None, **unknown: object) -> FastPredictor:
+    """The ``fast`` predictor; an option it does not take is an error, not ignored."""
+    if unknown:
+        raise InputError(f"the fast predictor takes no {', '.join(sorted(unknown))} option "
+                         "(it needs no downloaded weights; 'params' names another "
+                         "calibration JSON)")
     return FastPredictor(params)
 
 
-register_predictor("fast", _factory,
-                   "calibrated highlight model on the CPU, no downloaded weights (default)")
+PREDICTORS = {
+    "fast": (_factory, "calibrated highlight model on the CPU, no downloaded weights (default)"),
+}
+"""The predictors this module offers: name -> (factory, description); see
+:mod:`.predictors`."""

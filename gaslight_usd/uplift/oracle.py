@@ -11,7 +11,6 @@ import numpy as np
 
 from ..errors import InputError
 from .curves import Curve
-from .predictors import register_predictor
 
 
 class OraclePredictor:
@@ -36,5 +35,9 @@ class OraclePredictor:
         return self._expose(curve, ev + 2.0, encoded.shape)
 
 
-register_predictor("oracle", OraclePredictor,
-                   "re-exposes a ground-truth HDR (tests and benchmark upper bound)")
+PREDICTORS = {
+    "oracle": (OraclePredictor,
+               "re-exposes a ground-truth HDR (tests and benchmark upper bound)"),
+}
+"""The predictors this module offers: name -> (factory, description); see
+:mod:`.predictors`."""

@@ -4,8 +4,8 @@ Faces are rendered with a wider field of view than 90 degrees (``overlap``) so
 a light source on a seam is seen whole by at least one face; back in lat-long
 each pixel blends the faces that see it with a weight that falls to 0 at the
 face border (the face's angular distance from its edge), so seams do not show.
-Sampling is bilinear, vectorised; lat-long follows
-:func:`gaslight_usd.cameras.latlong_directions` (OpenEXR envmap=latlong).
+Faces, lat-long directions and bilinear sampling are the project's conventions
+(:mod:`gaslight_usd.cameras`: OpenEXR envmap=latlong and cube face order).
 """
 
 from __future__ import annotations
@@ -13,19 +13,14 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy import ndimage
 
-from ..cameras import direction_to_latlong, latlong_directions
+from ..cameras import CUBE_FACE_AXES, CUBE_FACES, bilinear, latlong_directions, sample_latlong
 
-# Face axes (forward, right, down) in the OpenEXR cube order +X, -X, +Y, -Y, +Z, -Z.
-FACES = (
-    ((1, 0, 0), (0, 0, -1), (0, -1, 0)),
-    ((-1, 0, 0), (0, 0, 1), (0, -1, 0)),
-    ((0, 1, 0), (1, 0, 0), (0, 0, 1)),
-    ((0, -1, 0), (1, 0, 0), (0, 0, -1)),
-    ((0, 0, 1), (1, 0, 0), (0, -1, 0)),
-    ((0, 0, -1), (-1, 0, 0), (0, -1, 0)),
-)
+
+def _axes(face: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(forward, right, down) of cube face ``face`` (OpenEXR order)."""
+    right, down, fwd = CUBE_FACE_AXES[CUBE_FACES[face]]
+    return fwd, right, down
 
 
 def face_directions(size: int, face: int, fov_scale: float = 1.0) -> np.ndarray:
@@ -33,27 +28,17 @@ def face_directions(size: int, face: int, fov_scale: float = 1.0) -> np.ndarray:
 
     ``fov_scale`` > 1 widens the face beyond 90 degrees (tan of half-angle).
     """
-    fwd, right, down = (np.asarray(a, np.float64) for a in FACES[face])
+    fwd, right, down = _axes(face)
     t = ((np.arange(size) + 0.5) / size * 2.0 - 1.0) * fov_scale
     u, v = np.meshgrid(t, t)
     d = fwd + u[..., None] * right + v[..., None] * down
     return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-def sample_latlong(latlong: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of a lat-long image in the given directions (wraps in longitude)."""
-    h, w = latlong.shape[:2]
-    xy = direction_to_latlong(directions, w, h) - 0.5
-    padded = np.concatenate([latlong[:, -1:], latlong, latlong[:, :1]], axis=1)
-    coords = [np.clip(xy[..., 1], 0, h - 1), xy[..., 0] % w + 1.0]
-    return np.stack([ndimage.map_coordinates(padded[..., c], coords, order=1, mode="nearest")
-                     for c in range(latlong.shape[2])], axis=-1).astype(np.float32)
-
-
 def _face_lookup(directions: np.ndarray, face: int, size: int, fov_scale: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pixel coordinates of ``directions`` on a face, and a seam weight (0 outside)."""
-    fwd, right, down = (np.asarray(a, np.float64) for a in FACES[face])
+    fwd, right, down = _axes(face)
     z = directions @ fwd
     safe = np.where(z > 1e-6, z, 1.0)
     u = (directions @ right) / safe / fov_scale
@@ -80,17 +65,10 @@ def faces_to_latlong(faces: list[np.ndarray], width: int, height: int,
         sel = weight > 0
         if not sel.any():
             continue
-        coords = [row[sel], col[sel]]
-        vals = np.stack([ndimage.map_coordinates(face[..., c], coords, order=1, mode="nearest")
-                         for c in range(face.shape[2])], axis=-1)
+        vals = bilinear(face, col[sel] + 0.5, row[sel] + 0.5)
         acc[sel] += weight[sel, None] * vals
         total[sel] += weight[sel]
     return (acc / np.maximum(total, 1e-12)[..., None]).astype(np.float32)
-
-
-def is_latlong(shape: tuple[int, ...]) -> bool:
-    """A 2:1 image is taken for an equirectangular panorama."""
-    return shape[1] == 2 * shape[0]
 
 
 def uplift_panorama(encoded: np.ndarray, uplift_face: Callable[[np.ndarray], np.ndarray],

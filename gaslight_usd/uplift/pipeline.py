@@ -3,7 +3,7 @@
 Each photo is uplifted in its encoded domain (prediction and merge), linearised
 through the photo's own input transform (see :mod:`.curves`), converted to the
 working space once, and divided by its exposure ratio so every view is on the
-set's relative-radiance scale (as :mod:`gaslight_usd.views` defines it).
+set's relative-radiance scale (as :mod:`gaslight_usd.poses.views` defines it).
 """
 
 from __future__ import annotations
@@ -17,22 +17,27 @@ import numpy as np
 import OpenImageIO as oiio
 
 from ..atomic import atomic_path
+from ..cameras import is_latlong
+from ..colour import CLIP_LEVEL
 from ..errors import InputError
-from ..views import CLIP_LEVEL, View
+from ..poses.views import View
 from .curves import InputTransform, input_transform
-from .panorama import is_latlong, uplift_panorama
+from .panorama import uplift_panorama
 from .predictors import Predictor, get_predictor
-from .recursive import uplift_recursive
+from .recursive import MAX_STEPS, THRESHOLD, uplift_recursive
 
 log = logging.getLogger(__name__)
 
 
 @dataclass
 class UpliftOptions:
+    """The options of the recursive uplift (converter ``uplift.recursive``); the CLI
+    reads its defaults from here."""
+
     predictor: str = "fast"
     weights: str | None = None
-    threshold: float = 0.9
-    max_steps: int = 6
+    threshold: float = THRESHOLD
+    max_steps: int = MAX_STEPS
     brighter: bool = False
     save_stacks: bool = False
     panorama: str = "auto"
@@ -41,12 +46,7 @@ class UpliftOptions:
     """Long side (pixels) photos are shrunk to before the uplift (0: as shot). ``run``
     sets it from the fit's working size, so nothing works on pixels the fit drops."""
     extra: dict[str, Any] = field(default_factory=dict)
-
-    @classmethod
-    def from_dict(cls, options: dict[str, Any]) -> UpliftOptions:
-        known = {k: v for k, v in options.items() if k in cls.__dataclass_fields__ and
-                 v is not None}
-        return cls(**known)
+    """Further keyword options of the predictor (a plug-in's own)."""
 
 
 def check_photo(view: View) -> None:
@@ -92,7 +92,8 @@ def uplift_view(view: View, predictor: Predictor, transform: InputTransform,
     check_photo(view)
     curve = transform.curve
     encoded = view.encoded
-    panorama = opts.panorama == "on" or (opts.panorama == "auto" and is_latlong(encoded.shape))
+    h, w = encoded.shape[:2]
+    panorama = opts.panorama == "on" or (opts.panorama == "auto" and is_latlong(w, h))
     steps: list[int] = []
 
     def one(enc: np.ndarray) -> np.ndarray:

@@ -6,12 +6,16 @@ to its own output. ``ev`` tells the predictor the EV offset of the image it is
 given relative to the original photo (0 for the photo, -2 after one step...):
 learned predictors ignore it, the oracle needs it.
 
-Register a predictor with :func:`register_predictor`; third parties may also
-use the entry-point group ``gaslight_usd.predictors`` (a factory callable).
+Built-in predictor modules (:data:`BUILTIN_MODULES`) each declare a table
+``PREDICTORS = {name: (factory, description)}`` that this module reads on first
+use; they never import this module, so the registry depends on them and not
+both ways. Code may add one with :func:`register_predictor`; third parties may
+also use the entry-point group ``gaslight_usd.predictors`` (a factory callable).
 """
 
 from __future__ import annotations
 
+import importlib
 import logging
 from collections.abc import Callable
 from importlib.metadata import entry_points
@@ -24,6 +28,8 @@ from .curves import Curve
 
 log = logging.getLogger(__name__)
 ENTRY_POINT_GROUP = "gaslight_usd.predictors"
+BUILTIN_MODULES = ("fast_predictor", "diffusion", "oracle")
+"""Modules of this package that declare a ``PREDICTORS`` table."""
 
 
 @runtime_checkable
@@ -67,8 +73,11 @@ def register_predictor(name: str, factory: Factory, description: str = "") -> No
 
 
 def _load_builtins() -> None:
-    from . import diffusion, fast_predictor, oracle  # noqa: F401  (they register)
-
+    for module_name in BUILTIN_MODULES:
+        module = importlib.import_module(f".{module_name}", __package__)
+        for name, (factory, description) in module.PREDICTORS.items():
+            if name not in _FACTORIES:
+                register_predictor(name, factory, description)
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         if ep.name in _FACTORIES:
             continue

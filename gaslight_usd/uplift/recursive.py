@@ -46,8 +46,15 @@ def _peak(encoded: np.ndarray) -> float:
     return float(np.max(encoded)) if encoded.size else 0.0
 
 
+THRESHOLD = 0.9
+"""Encoded level the darkest exposure's pixels must stay under (the paper's stop rule)."""
+MAX_STEPS = 6
+"""Most darker steps: 6 x 2 EV reaches EV -12."""
+
+
 def uplift_recursive(encoded: np.ndarray, predictor: Predictor, curve: Curve,
-                     threshold: float = 0.9, max_steps: int = 6, brighter: bool = False,
+                     threshold: float = THRESHOLD, max_steps: int = MAX_STEPS,
+                     brighter: bool = False,
                      max_bright_steps: int = 2, bright_threshold: float = 0.8
                      ) -> UpliftResult:
     """Uplift one encoded photo ``(H, W, 3)`` in [0, 1] to linear radiance.

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from ..views import View
+from ..poses.views import View
 
 THUMB_SIDE = 96
 """Longest thumbnail side in blocks."""

@@ -28,8 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt
 
+from ..export_options import PALETTE_TOLERANCE
 from ..splats import SplatScene
-from .palette import DEFAULT_THRESHOLD, DEFAULT_TOLERANCE, Palette, fit_palette
+from .palette import DEFAULT_THRESHOLD, Palette, fit_palette
 
 MAX_PALETTE = 64
 
@@ -139,7 +140,7 @@ def _instance_scales(scene: SplatScene) -> np.ndarray:
 
 def write_instancer(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene,
                     threshold: float | None = DEFAULT_THRESHOLD,
-                    tolerance: float = DEFAULT_TOLERANCE,
+                    tolerance: float = PALETTE_TOLERANCE,
                     non_emitters: str = "drop", max_palette: int = MAX_PALETTE,
                     seed: int = 0, mask: np.ndarray | None = None) -> InstancerReport:
     """Author ``<root>/Instancer`` (a PointInstancer) and ``<root>/Looks`` under ``root``.

@@ -14,8 +14,6 @@ import numpy as np
 
 DEFAULT_THRESHOLD = 1.0
 """Radiance (max channel of the base colour) above which a splat is an emitter (GaSLight)."""
-DEFAULT_TOLERANCE = 0.10
-"""95th percentile of per-emitter relative RGB error the palette must meet."""
 
 FIT_SAMPLE = 20_000
 """K-means fits on at most this many colours; every colour is then assigned."""

@@ -33,6 +33,7 @@ from pxr import Gf, Sdf, Usd, UsdLux
 
 from .. import colour
 from ..cameras import latlong_directions, latlong_solid_angles
+from ..export_options import DOME_WIDTH, RIG_TOLERANCE
 from ..hdri import write_latlong
 from ..splats import SplatScene
 from .instancer import emitter_mask
@@ -264,8 +265,8 @@ def _define_dome_shell(stage: Usd.Stage, path: Sdf.Path, dome_name: str,
 
 
 def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
-              dome_name: str, probe=None, width: int = 1024,
-              tolerance: float = 0.05, threshold: float | None = None,
+              dome_name: str, probe=None, width: int = DOME_WIDTH,
+              tolerance: float = RIG_TOLERANCE, threshold: float | None = None,
               working_space: str = colour.DEFAULT_WORKING_SPACE,
               ocio_config: str | None = None, seed: int = 0,
               max_lights: int = MAX_LIGHTS, search=None) -> dict:

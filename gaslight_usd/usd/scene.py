@@ -31,9 +31,9 @@ from pxr import Usd, UsdGeom
 
 from .. import colour
 from ..errors import InputError
+from ..export_options import DOME_WIDTH, PALETTE_TOLERANCE, RIG_TOLERANCE
 from ..progress import Progress
 from ..splats import SplatScene
-from .palette import DEFAULT_TOLERANCE
 from .particlefield import MAX_LAYER_BYTES, bytes_per_splat, chunk_ranges, write_particle_field
 from .stage import Provenance, StageFrame, new_stage, tag_layer_root
 from .validate import Finding, validate
@@ -50,11 +50,11 @@ class ExportOptions:
     half: bool = False
     emit_threshold: float | None = None
     """None: emitters are the lights finder's; a number: radiance above it (GaSLight)."""
-    palette_tolerance: float = DEFAULT_TOLERANCE
+    palette_tolerance: float = PALETTE_TOLERANCE
     non_emitters: str = "drop"
-    rig_tolerance: float = 0.05
+    rig_tolerance: float = RIG_TOLERANCE
     probe: tuple[float, float, float] | None = None
-    dome_width: int = 1024
+    dome_width: int = DOME_WIDTH
     max_layer_bytes: int = MAX_LAYER_BYTES
     working_space: str = colour.DEFAULT_WORKING_SPACE
     ocio_config: str | None = None

@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from .atomic import atomic_path, write_text
-from .cameras import PinholeCamera
+from ..atomic import atomic_path, write_text
+from ..cameras import PinholeCamera
+from ..errors import InputError
 from .colmap import ColmapCamera, ColmapModel
-from .errors import InputError
 
 GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 """Flips the camera's y and z axes: COLMAP/OpenCV <-> OpenGL camera axes."""
@@ -46,7 +46,7 @@ def _intrinsics(entry: dict, base: dict, path: Path, image: Path) -> dict[str, f
         if not image.exists():
             raise InputError(f"no image size (w, h) given and {image.name} is not there "
                              "to read it from", path)
-        from .imageio import read_header
+        from ..imageio import read_header
         spec = read_header(image)
         w, h = spec.width, spec.height
     fx, fy = get("fl_x"), get("fl_y")

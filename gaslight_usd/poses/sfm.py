@@ -12,7 +12,7 @@ naming them when fewer than ``min_registered`` (a share) register.
 
 Lat-long panoramas (2:1 photos with ``panorama="auto"``, or all photos with
 ``"on"``) are cut into six cube faces that form a COLMAP rig: one centre, six
-fixed rotations (:mod:`gaslight_usd.panorama`). The model then holds the face
+fixed rotations (:mod:`gaslight_usd.poses.panorama`). The model then holds the face
 cameras, named ``cube_<face>/<photo>``.
 """
 
@@ -30,11 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from ..cameras import is_latlong
+from ..errors import GaslightError, InputError
+from ..imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
+from ..progress import Progress
 from . import panorama
 from .colmap import ColmapCamera, ColmapModel, read_model, write_model
-from .errors import GaslightError, InputError
-from .imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
-from .progress import Progress
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +153,7 @@ def _stage_photos(photos: list[Path], work: Path, opts: SfmOptions
         spec, pixels = read_pixels(path, oiio.UINT8)
         sizes[path.name] = (spec.width, spec.height)
         pano = opts.panorama == "on" or (
-            opts.panorama == "auto" and panorama.is_latlong(spec.width, spec.height))
+            opts.panorama == "auto" and is_latlong(spec.width, spec.height))
         if not pano:
             (work / path.name).symlink_to(path.resolve())
             names.append(path.name)

@@ -1,6 +1,6 @@
 """Calibrate (train) the fast predictor on real HDR panoramas, reproducibly.
 
-    python -m gaslight_usd.uplift.calibrate [--hdri DIR | --panoramas NAME ...]
+    python -m gaslight_usd.bench.calibrate [--hdri DIR | --panoramas NAME ...]
         [--crops 600] [--seed 1000] [--clamped-weight 0] [--no-light-weight 1]
         [--exclude NAME ...] [--cache CROPS.npz] [--no-lopo] [-o PARAMS.json]
 
@@ -54,13 +54,13 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_path, write_text
+from ..colour import CLIP_LEVEL, REC709_Y
 from ..evaluation import curves as camera_curves
 from ..evaluation.reference import make_pair, shared_sources
 from ..evaluation.relight import RelightRenderer
 from ..evaluation.shared_panoramas import BY_NAME, NO_LIGHT, TRUSTED, folder_of, load_shared
-from .curves import Curve, lut_curve
-from .fast_predictor import (
-    CLIP,
+from ..uplift.curves import Curve, lut_curve
+from ..uplift.fast_predictor import (
     FEATURES,
     LEGACY_FEATURES,
     LOPO_FILE,
@@ -161,7 +161,7 @@ def _crop_inputs(pair, renderer: RelightRenderer) -> tuple | None:
     # pixels get their bounded values (all-clipped pixels are the units' business)
     value = spread(regions, log_mean, cap)
     filled = fill_clipped(linear, pair.ldr, regions, value)
-    all_clipped = regions.mask & (pair.ldr.min(axis=-1) >= CLIP)
+    all_clipped = regions.mask & (pair.ldr.min(axis=-1) >= CLIP_LEVEL)
     base = np.where(all_clipped[..., None], linear, filled)
     # true excess energy of every region: how the "rest" group shares its unit
     excess = np.bincount(lab, weights=np.maximum(truth_max[regions.mask] - 1.0, 0.0),
@@ -287,7 +287,7 @@ def relight_psnr(data: CropSet, log_mean, mix=None, ring_share=None):
     white_light = torch.einsum("cgk,cgkp->cp", white_coef, t["units"])
     pred = (t["base"] + torch.einsum("cgp,cgd->cpd", ring_light, t["ring"])
             + white_light[..., None])
-    lum = torch.tensor([0.2126, 0.7152, 0.0722])
+    lum = torch.tensor(REC709_Y)
     yt = (t["truth"] * lum).sum(-1)
     yp = (pred * lum).sum(-1)
     m = t["align"].float()
@@ -369,7 +369,7 @@ def scores(data: CropSet, model_params: dict) -> dict[str, np.ndarray]:
     """Per-crop relight PSNR of the model as shipped (``fast``: its log2 means times
     :data:`.fast_predictor.SHRINK`), with each factor of :data:`SHRINKS` (``fast xA``),
     the baseline and the true means."""
-    from .fast_predictor import Mlp
+    from ..uplift.fast_predictor import Mlp
 
     log_mean, mix, share = Mlp(model_params).heads(data.features)
     shrunk = {f"fast x{a}": relight_psnr(data, a * log_mean, mix, share).numpy()
@@ -538,7 +538,7 @@ def main(argv: list[str] | None = None) -> int:
     if "--cache" in given:  # a cache only saves time: the numbers do not depend on it
         at = given.index("--cache")
         del given[at:at + 2]
-    command = " ".join(["python -m gaslight_usd.uplift.calibrate", *given])
+    command = " ".join(["python -m gaslight_usd.bench.calibrate", *given])
     if not args.no_lopo:
         lopo, models = leave_one_out(data, weights, args.seed, model, shape_heads, **steps)
         models = {name: _rounded(m) for name, m in models.items()}

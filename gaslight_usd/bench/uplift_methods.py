@@ -18,7 +18,7 @@ in tests/test_uplift.py), so it is not benchmarked.
 
 Where it fails, in pictures::
 
-    python -m gaslight_usd.uplift.bench_methods BENCH_DIR/uplift.json -o worst.png [-n 8]
+    python -m gaslight_usd.bench.uplift_methods BENCH_DIR/uplift.json -o worst.png [-n 8]
 
 rebuilds the worst crops of ``recursive-fast`` (largest relight PSNR loss
 against ``ldr-baseline``, then lowest PSNR) from the bench's seed and draws, per
@@ -34,17 +34,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bench.suite_uplift import (
+from ..evaluation.reference import ReferencePair
+from ..uplift.fast_predictor import LOPO_FILE, FastPredictor
+from ..uplift.recursive import uplift_recursive
+from .calibrate import evaluation_curve
+from .suite_uplift import (
     clipped_regions,
     region_means,
     register_pair_method,
     register_reference_method,
     register_uplift_method,
 )
-from ..evaluation.reference import ReferencePair
-from .calibrate import evaluation_curve
-from .fast_predictor import LOPO_FILE, FastPredictor
-from .recursive import uplift_recursive
 
 _FAST = FastPredictor()
 METHOD = "recursive-fast"

@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from . import colour
-from .imageio import (
+from .. import colour
+from ..colour import CLIP_LEVEL
+from ..imageio import (
     IMAGE_EXTENSIONS,
     LDR_EXTENSIONS,
     exposure_from_spec,
@@ -33,12 +34,9 @@ from .imageio import (
     read_image,
     write_exr,
 )
-from .resize import area_resize, fit_within
+from ..resize import area_resize, fit_within
 
 logger = logging.getLogger(__name__)
-
-CLIP_LEVEL = 0.99
-"""An encoded value at or above this (of full scale) counts as clipped."""
 
 CLIP_FLOOR_CHANNEL = "clip_floor"
 """The HDR views' extra EXR channel: in pixels the photo clipped, the luminance the photo

@@ -10,7 +10,7 @@ written back unchanged) but the pinhole cameras ignore it; a note says so.
 
 Layout written: ``cameras``, ``images``, ``points3D`` as ``.txt`` or ``.bin``
 (the formats COLMAP 3.x/4.x and every 3DGS trainer read), plus ``frame.json``
-when the model carries frame metadata (see :mod:`gaslight_usd.frame`).
+when the model carries frame metadata (see :mod:`gaslight_usd.poses.frame`).
 """
 
 from __future__ import annotations
@@ -24,10 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from .atomic import atomic_path, write_text
-from .cameras import PinholeCamera, matrix_to_quaternion, quaternion_to_matrix
-from .errors import InputError
-from .kinds import find_colmap_model
+from ..atomic import atomic_path, write_text
+from ..cameras import PinholeCamera, matrix_to_quaternion, quaternion_to_matrix
+from ..errors import InputError
 
 FRAME_FILE = "frame.json"
 
@@ -522,3 +521,17 @@ def _write_points3d_bin(path: Path, model: ColmapModel, qs: np.ndarray) -> None:
         idx = ((starts + 8 * within)[:, None] + np.arange(8)).ravel()
         out[idx] = track_bytes
     path.write_bytes(out.tobytes())
+
+
+def _is_colmap_model(folder: Path) -> bool:
+    return any((folder / f"cameras.{ext}").exists() for ext in ("txt", "bin"))
+
+
+def find_colmap_model(folder: Path) -> Path | None:
+    """The folder holding cameras/images files: ``folder``, or ``folder/0``."""
+    if _is_colmap_model(folder):
+        return folder
+    for sub in (folder / "0", folder / "sparse" / "0", folder / "sparse"):
+        if sub.is_dir() and _is_colmap_model(sub):
+            return sub
+    return None

@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from .cameras import PinholeCamera
+from ..cameras import PinholeCamera
+from ..errors import InputError
 from .colmap import ColmapModel
-from .errors import InputError
 
 MIN_POINTS_FOR_CENTRE = 10
 MIN_FLOOR_POINTS = 20

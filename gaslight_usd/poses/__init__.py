@@ -2,7 +2,7 @@
 
 :func:`read_poses` accepts a COLMAP model folder (text or binary, or a parent
 with ``0/`` / ``sparse/0``), a ``transforms.json`` or a folder holding one, and
-returns a :class:`~gaslight_usd.colmap.ColmapModel`. :func:`write_poses` writes
+returns a :class:`~gaslight_usd.poses.colmap.ColmapModel`. :func:`write_poses` writes
 a folder as a COLMAP model (text, or binary) and a ``.json`` path as a
 transforms.json. Poses the user gives keep their own frame; when they carry no
 ``frame.json`` the frame facts say so (up axis estimated, units unknown).
@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .colmap import ColmapModel, read_model, write_model
-from .errors import InputError
+from ..cameras import bilinear
+from ..errors import InputError
+from .colmap import ColmapModel, find_colmap_model, read_model, write_model
 from .frame import given_frame
-from .kinds import find_colmap_model
 from .transforms_json import read_transforms, transforms_path, write_transforms
 
 
@@ -25,7 +25,7 @@ def read_poses(path: str | Path) -> ColmapModel:
     """A COLMAP model or a transforms.json as a :class:`ColmapModel`.
 
     ``model.frame`` always holds the frame facts: the stored ``frame.json`` (or
-    ``gaslight_frame`` key) when present, else :func:`~gaslight_usd.frame.given_frame`.
+    ``gaslight_frame`` key) when present, else :func:`~gaslight_usd.poses.frame.given_frame`.
     """
     path = Path(path)
     if not path.exists():
@@ -112,7 +112,7 @@ def colour_points(model: ColmapModel, hdr_views: dict[str, np.ndarray]) -> np.nd
     for r, img in enumerate(images):
         idx = np.flatnonzero(seen[r])
         if len(idx):
-            samples[r, idx] = _bilinear(img, uv[r, idx])
+            samples[r, idx] = bilinear(img, uv[r, idx, 0], uv[r, idx, 1])
     counts = seen.sum(0)
     out = np.empty((n, 3), np.float32)
     have = counts > 0
@@ -122,17 +122,3 @@ def colour_points(model: ColmapModel, hdr_views: dict[str, np.ndarray]) -> np.nd
     else:
         out[:] = 0.0
     return out
-
-
-def _bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear samples of ``img`` at continuous pixel coordinates (centres at +0.5)."""
-    h, w = img.shape[:2]
-    x = np.clip(uv[:, 0] - 0.5, 0, w - 1)
-    y = np.clip(uv[:, 1] - 0.5, 0, h - 1)
-    x0 = np.minimum(np.floor(x).astype(np.int64), w - 2 if w > 1 else 0)
-    y0 = np.minimum(np.floor(y).astype(np.int64), h - 2 if h > 1 else 0)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
-    bottom = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
-    return top * (1 - fy) + bottom * fy
