@@ -39,6 +39,12 @@ class FitOptions:
     refine_poses: bool = False
     """Optimise the training views' poses too; the refined poses are written beside
     the output as a COLMAP text model (:func:`refined_poses_path`)."""
+    working_size: int | None = None
+    """The views' long side in the fit (default: the preset's; the bench's shortened fits)."""
+    tolerance_stops: float | None = None
+    """Keep the smallest cut-down model whose held-out error is within this many stops
+    of the full fit's (:mod:`gaslight_usd.fit.smallest`); what it chose is in the
+    report's metadata."""
 
 
 def checkpoint_path(output: Path) -> Path:
@@ -78,6 +84,7 @@ def fit(ctx: StageContext) -> StageResult:
     if name not in PRESETS:
         raise InputError(f"unknown fit preset {name!r}; choose from {', '.join(PRESETS)}")
     cfg = preset(name).updated(budget=opts.budget, iterations=opts.iterations,
+                               working_size=opts.working_size,
                                refine_poses=bool(opts.refine_poses))
     seed = int(opts.seed if opts.seed is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
@@ -109,10 +116,26 @@ def fit(ctx: StageContext) -> StageResult:
         },
         "fit_metrics": result.metrics,
     }
+    if not result.metrics["held_out_views"]:
+        ctx.progress.message(
+            f"warning: only {len(data.names)} views, none held out: the fit could not tell "
+            "when more splats stopped helping, and its errors (and --tolerance-stops) are "
+            "measured on the views it was fitted to; shoot more photos")
     result.scene.metadata = metadata
     m = result.metrics
     ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
                          f"{m['backdrop_splats']} backdrop splats added after the last step")
+    choice = None
+    if opts.tolerance_stops is not None:
+        from gaslight_usd.fit.smallest import choose_for_fit
+
+        choice, smaller = choose_for_fit(data, result, float(opts.tolerance_stops),
+                                         cfg.background)
+        result.scene = smaller
+        smaller.metadata = metadata
+        metadata["model_choice"] = {k: v for k, v in choice.as_dict().items()
+                                    if k != "candidates"}
+        ctx.progress.message(("" if choice.held_out else "warning: ") + choice.sentence())
     write_ply(ctx.output, result.scene)
     extra = {}
     if cfg.refine_poses:
@@ -127,8 +150,9 @@ def fit(ctx: StageContext) -> StageResult:
     return StageResult(
         metadata={"colour_space": data.colour_space, "preset": name,
                   "exposure_scale": metadata["exposure_scale"], "frame": data.model.frame,
-                  "history": result.history, "left_out_views": data.left_out, **extra},
-        counts={"splats": m["splats"], "views": len(data.names),
+                  "history": result.history, "left_out_views": data.left_out, **extra,
+                  **({"model_choice": choice.as_dict()} if choice else {})},
+        counts={"splats": result.scene.count, "views": len(data.names),
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",

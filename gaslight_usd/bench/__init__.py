@@ -14,7 +14,9 @@ and optionally ``notes(options) -> list[str]`` (settings worth printing, e.g.
 a reduced render size), ``summaries(rows) -> list[dict]`` (the suite's own
 grouped figures, e.g. means per group of cases: written to ``<suite>.json``
 and printed as a table), ``TABLE`` (the columns the CLI prints) and
-``REFERENCES`` (methods such as an oracle: charted grey, kept off the front). Options:
+``REFERENCES`` (methods such as an oracle: charted grey, kept off the front) and
+``FRONT_BY`` (a row key, e.g. ``"method"``: a Pareto front per value of it, for a
+suite whose methods measure different errors). Options:
 ``quick`` (bool: well under a minute), ``seed`` (int), ``out`` (Path, the
 report folder), ``count`` (int or None: cases, suite default when None),
 ``progress`` (a :class:`~gaslight_usd.progress.Progress`), ``verbose``.

@@ -92,14 +92,25 @@ def write_photo(path: Path, radiance: np.ndarray, settings: tuple[float, float],
     ExposureTime and FNumber replaced)."""
     shutter, aperture = settings
     gain = shutter * k_camera * (f_number / aperture) ** 2
-    linear = np.clip(radiance * np.float32(gain), 0.0, 1.0)
+    write_linear_photo(path, radiance * np.float32(gain), settings, like)
+
+
+def write_linear_photo(path: Path, linear: np.ndarray, settings: tuple[float, float],
+                       like: Path, quality: int = 93) -> None:
+    """A linear Rec.709 sensor image (1 = white) as the scene's camera writes it: clipped,
+    sRGB OETF, 8-bit JPEG at ``quality``, the EXIF of ``like`` with ExposureTime and
+    FNumber set from ``settings`` (shutter s, f-number)."""
+    shutter, aperture = settings
+    linear = np.clip(linear, 0.0, 1.0)
     encoded = convert(linear.astype(np.float32), TRUTH_SPACE, PHOTO_SPACE)
     pixels = np.round(np.clip(encoded, 0.0, 1.0) * 255).astype(np.uint8)
     spec = oiio.ImageSpec(read_header(like))
+    spec.width, spec.height = pixels.shape[1], pixels.shape[0]
+    spec.full_width, spec.full_height = spec.width, spec.height
     spec.set_format(oiio.UINT8)
     spec.attribute("ExposureTime", float(shutter))
     spec.attribute("FNumber", float(aperture))
-    spec.attribute("Compression", "jpeg:93")
+    spec.attribute("Compression", f"jpeg:{int(quality)}")
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
         if out is None or not out.open(str(tmp), spec) or not out.write_image(pixels):

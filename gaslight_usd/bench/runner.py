@@ -126,18 +126,24 @@ def run_suite(module: ModuleType, options: dict[str, Any], out: Path) -> SuiteRe
     y_key, y_label = module.Y
     higher = bool(getattr(module, "HIGHER_IS_BETTER", True))
     references = set(getattr(module, "REFERENCES", ()))
-    contenders = [m for m in result.medians if m["method"] not in references]
-    front = pareto_front(contenders, x_key, y_key, higher)
     for entry in result.medians:
         entry["pareto"] = False
-    for entry, on_front in zip(contenders, front, strict=True):
-        entry["pareto"] = on_front
+    front_by = getattr(module, "FRONT_BY", None)
+    contenders = [m for m in result.medians if m["method"] not in references]
+    families = ({} if front_by is None else
+                {m.get(front_by): [c for c in contenders if c.get(front_by) == m.get(front_by)]
+                 for m in contenders})
+    for members in (families.values() if front_by else [contenders]):
+        for entry, on_front in zip(members, pareto_front(members, x_key, y_key, higher),
+                                   strict=True):
+            entry["pareto"] = on_front
     out.mkdir(parents=True, exist_ok=True)
     csv_path = write_text(out / f"{name}.csv", _csv_text(result.rows))
     report = {
         "suite": name, "description": module.DESCRIPTION,
         "x": {"key": x_key, "label": x_label}, "y": {"key": y_key, "label": y_label},
-        "higher_is_better": higher, "seconds": result.seconds, "notes": result.notes,
+        "higher_is_better": higher, "references": sorted(references), "front_by": front_by,
+        "seconds": result.seconds, "notes": result.notes,
         "options": {k: v for k, v in options.items() if k != "progress"},
         "versions": versions(), "error": result.error,
         "medians": result.medians, "summaries": result.summaries, "rows": result.rows,

@@ -29,6 +29,8 @@ examples:
   gaslight2usd bench --suite uplift --quick -o out/bench
   gaslight2usd bench -o out/bench            # every suite, full size
   gaslight2usd bench --suite scale --photos 24 --megapixels 0.2,12 -o out/bench
+  gaslight2usd bench --suite stability -o out/bench   # where methods break
+  gaslight2usd bench --suite budget --suite tradeoff -o out/bench  # + out/bench/index.html
 """
 
 
@@ -57,6 +59,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scene", action="append", default=[], metavar="NAME",
                    help="chain suite: only these scenes (repeatable; room, bulb, panels, "
                         "shade; default: all)")
+    p.add_argument("--perturb", action="append", default=[], metavar="NAME",
+                   help="stability suite: only these perturbations (repeatable; photos, "
+                        "noise, jpeg, white_balance, exposure, motion_blur, light_half_out, "
+                        "light_one_view, no_clip, clipped_frames, pose_noise)")
+    p.add_argument("--full", action="store_true",
+                   help="stability suite: every strength of each perturbation, not the "
+                        "default few; stability and budget suites: fits with the preset as "
+                        "it is (not shortened)")
+    p.add_argument("--from", dest="sources", action="append", type=Path, default=[],
+                   metavar="DIR", help="tradeoff suite: folders of earlier bench results "
+                                       "(<suite>.json) to chart (repeatable; default: "
+                                       "REPORT_DIR)")
     p.add_argument("--photos", type=_numbers(int), metavar="N[,N...]",
                    help="scale suite: photo counts (e.g. 12,24,48,96)")
     p.add_argument("--megapixels", type=_numbers(float), metavar="MP[,MP...]",
@@ -129,7 +143,9 @@ def run(args: argparse.Namespace) -> int:
     options = {"quick": args.quick, "seed": args.seed, "count": args.count,
                "verbose": args.verbose, "presets": tuple(args.preset) or None,
                "methods": list(args.method) or None, "scenes": tuple(args.scene) or None,
-               "photos": args.photos, "megapixels": args.megapixels}
+               "photos": args.photos, "megapixels": args.megapixels,
+               "perturbations": list(args.perturb) or None, "full": args.full,
+               "sources": list(args.sources) or None}
     results = []
     for name in names:
         progress.message(f"suite {name}: {discovery.suites[name].DESCRIPTION}")

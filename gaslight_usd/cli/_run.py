@@ -52,6 +52,16 @@ def _targets(text: str) -> tuple[Kind, ...]:
             f"unknown output {exc.args[0]!r}; choose from {', '.join(KIND_NAMES)}") from exc
 
 
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value >= 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number of stops >= 0, got {text!r}")
+    return value
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help=HELP, description=DESCRIPTION,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -85,6 +95,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="size of the HDR views in OUT/hdr: work (the fit's working size, "
                         "default) or full (the photos' own; slower, more memory)")
     p.add_argument("--budget", type=positive_int, metavar="N", help="maximum splat count")
+    p.add_argument("--iterations", type=positive_int, metavar="N",
+                   help="fit optimisation steps (default: the preset's)")
+    p.add_argument("--tolerance-stops", type=_non_negative, metavar="X",
+                   help="keep the smallest model (fewer splats, lower SH degree) whose "
+                        "error on the fit's held-out views stays within X stops of the full "
+                        "fit's; the choice and its cost are printed and in report.json")
     p.add_argument("--refine-poses", action="store_true",
                    help="optimise small corrections to the training views' poses while "
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
@@ -131,7 +147,9 @@ def run(args: argparse.Namespace) -> int:
             "poses": {"camera_height": args.camera_height, "scale": args.scale,
                       "scale_from": args.scale_from},
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
-                    "seed": args.seed, "refine_poses": args.refine_poses or None},
+                    "iterations": args.iterations,
+                    "seed": args.seed, "refine_poses": args.refine_poses or None,
+                    "tolerance_stops": args.tolerance_stops},
             "export": {"as": list(args.export_as) if args.export_as else None,
                        "default_variant": args.default_variant},
             "hdri": {"at": args.at, "device": args.device, "cube": args.cube or None},
@@ -149,9 +167,24 @@ def run(args: argparse.Namespace) -> int:
     sheet = args.output / CONTACT_SHEET
     if sheet.exists():
         lines.append(f"pictures   {sheet}")
+    choice = _model_choice(report)
+    if choice:
+        lines.append(f"model      {choice['splats']} splats, SH degree {choice['sh_degree']} "
+                     f"({choice['bytes'] / max(choice['full_bytes'], 1):.0%} of the full fit's "
+                     f"bytes), {choice['cost_stops']:+.3f} stops held-out error for "
+                     f"--tolerance-stops {choice['tolerance_stops']:g}")
     lines.append(f"report     {args.output / 'report.json'} "
                  f"({report['total_seconds']:.1f} s)")
     emit(args, {"outputs": {k.value: str(a.path) for k, a in artifacts.items()},
                 "pictures": str(sheet) if sheet.exists() else None,
                 "report": report}, "\n".join(lines))
     return 0
+
+
+def _model_choice(report: dict) -> dict | None:
+    """What ``--tolerance-stops`` chose, from the fit stage of ``report.json``."""
+    for stage in report.get("stages", []):
+        meta = stage.get("metadata") or {}
+        if isinstance(meta, dict) and "model_choice" in meta:
+            return meta["model_choice"]
+    return None
