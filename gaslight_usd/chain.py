@@ -238,6 +238,7 @@ class ChainRun:
         # redo its fit.
         state = self._load_state()
         self._earlier = self._load_report()
+        self._planned = {conv.step for conv in steps}
         total = len(steps)
         for index, conv in enumerate(steps, start=1):
             stage_options = dict((options or {}).get(conv.step, {}))
@@ -373,16 +374,16 @@ class ChainRun:
         return earlier if isinstance(earlier, dict) else {}
 
     def _kept_stages(self) -> list[dict[str, Any]]:
-        """Stages an earlier command recorded in this folder's report that this run has not
-        remade (another output): a single-stage command adds to the report of a ``run``."""
+        """Stages of steps this run does not make, as an earlier command recorded them in
+        this folder's report: a single-stage command adds to the report of a ``run``."""
         earlier = getattr(self, "_earlier", {})
         stages = earlier.get("stages")
         if not isinstance(stages, list):
             return []
-        mine = {r.output for r in self.records}
+        planned = getattr(self, "_planned", set())
         command = earlier.get("command")
         return [{**st, "command": st.get("command", command)} for st in stages
-                if isinstance(st, dict) and st.get("output") not in mine]
+                if isinstance(st, dict) and st.get("name") not in planned]
 
     def report(self, status: str) -> dict[str, Any]:
         kept = self._kept_stages()
