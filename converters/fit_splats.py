@@ -121,6 +121,14 @@ def fit(ctx: StageContext) -> StageResult:
             f"warning: only {len(data.names)} views, none held out: the fit could not tell "
             "when more splats stopped helping, and its errors (and --tolerance-stops) are "
             "measured on the views it was fitted to; shoot more photos")
+    outliers = result.metrics.get("exposure_outliers") or []
+    if outliers:
+        listed = ", ".join(f"{o['view']} ({o['stops']:+.1f} stops)" for o in outliers)
+        ctx.progress.message(
+            f"warning: {len(outliers)} photo(s) read brighter or darker than the others see "
+            f"the same set: {listed}; their EXIF exposure is likely wrong (exposure "
+            "compensation or an ND filter the EXIF does not record): fix the tags or leave "
+            "them out")
     result.scene.metadata = metadata
     m = result.metrics
     ctx.progress.message(f"kept {m['splats']} splats: {m['pruned_idle']} idle ones pruned, "
@@ -156,7 +164,7 @@ def fit(ctx: StageContext) -> StageResult:
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
-                                   "backdrop_splats")},
+                                   "backdrop_splats", "exposure_outliers")},
     )
 
 

@@ -313,3 +313,26 @@ def test_a_diverging_fit_is_caught_and_named(synthetic):
     data.images[2][5, 5] = np.inf  # 3 channels
     with pytest.raises(InputError, match=rf"view {data.names[2]} holds 3 NaN or infinite"):
         fit_splats(data, tiny(iterations=40), seed=0)
+
+
+def test_a_photo_with_a_wrong_exif_exposure_is_named(posed_hdr_scene, tmp_path):
+    """One view 2 stops brighter than its exposure says (a compensated or filtered photo
+    whose EXIF does not record it): its sparse points read 2 stops over the other views',
+    so the fit names that view and no other; the true views name none. (The fit's own
+    errors do not show it: it bends the splats to each view.)"""
+    import shutil
+
+    from gaslight_usd.imageio import read_image
+
+    root = posed_hdr_scene
+    hdr = tmp_path / "hdr"
+    shutil.copytree(root / "hdr", hdr)
+    bright = read_image(hdr / "view_02.exr")
+    write_exr(hdr / "view_02.exr", bright.pixels * 4.0, "lin_rec709",
+              {"gaslight:exposure_scale": 1.0}, half=False)
+    cfg = tiny(iterations=16)
+    clean = fit_splats(load_fit_data(root / "hdr", root / "sparse"), cfg, seed=0)
+    assert clean.metrics["exposure_outliers"] == []
+    off = fit_splats(load_fit_data(hdr, root / "sparse"), cfg, seed=0)
+    named = {o["view"]: o["stops"] for o in off.metrics["exposure_outliers"]}
+    assert list(named) == ["view_02"] and named["view_02"] == pytest.approx(2.0, abs=0.25)

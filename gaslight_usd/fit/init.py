@@ -189,7 +189,7 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
     return pts, cols
 
 
-def _seen_by(model: ColmapModel, names: list[str]) -> np.ndarray | None:
+def seen_by(model: ColmapModel, names: list[str]) -> np.ndarray | None:
     """(V, N) which of the named views each sparse point's track holds (None: no tracks)."""
     tracks = model.tracks
     if tracks is None or len(tracks) != len(model.points) or not any(len(t) for t in tracks):
@@ -258,7 +258,7 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
             pts, colours = pts[pick], colours[pick]
         lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng,
                                               floors=floors, y_weights=y_weights)
-        seen = _seen_by(model, names)
+        seen = seen_by(model, names)
         fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
                                                  cameras, images,
                                                  count - len(pts) - len(lights), rng)

@@ -46,6 +46,7 @@ from .backdrop import concatenate, unseen_backdrop
 from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
+from .exposure_check import exposure_outliers
 from .init import initial_points, neighbour_scales
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
@@ -137,13 +138,17 @@ class Trainer:
         self._reset_stats()
 
     def _init_model(self):
-        """The poses' model, with points triangulated from the views when it has none."""
+        """The poses' model, with points triangulated from the views when it has none
+        (made once: the exposure check at the end reads its points too)."""
+        if getattr(self, "_points_model", None) is not None:
+            return self._points_model
         model = self.data.model
-        if len(model.points) >= 16 or not self.cfg.triangulate or not self.data.paths:
-            return model
-        by_stem = {p.stem: p for p in self.data.paths}
-        views = {n: by_stem[Path(n).stem] for n in model.names}
-        return triangulate_views(model, views, self.progress) or model
+        if len(model.points) < 16 and self.cfg.triangulate and self.data.paths:
+            by_stem = {p.stem: p for p in self.data.paths}
+            views = {n: by_stem[Path(n).stem] for n in model.names}
+            model = triangulate_views(model, views, self.progress) or model
+        self._points_model = model
+        return model
 
     def _reset_stats(self) -> None:
         n = self.model.count
@@ -413,6 +418,10 @@ class Trainer:
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
             "clipped_lights": [light.as_dict() for light in lights],
+            "exposure_outliers": exposure_outliers(
+                self._init_model(), self.data.cameras, self.data.images, self.data.names,
+                [self.data.floor(i) for i in range(len(self.data.images))],
+                self.y_weights.cpu().numpy()),
         }
         if self.refiner is not None:
             metrics["pose_refinement"] = self.refiner.summary(
