@@ -121,6 +121,12 @@ def fit(ctx: StageContext) -> StageResult:
             f"warning: only {len(data.names)} views, none held out: the fit could not tell "
             "when more splats stopped helping, and its errors (and --tolerance-stops) are "
             "measured on the views it was fitted to; shoot more photos")
+    for light in result.metrics.get("single_view_lights") or []:
+        where = ", ".join(f"{v:.2f}" for v in light["position"])
+        ctx.progress.message(
+            f"warning: a light ({light['power_share']:.0%} of the bright splats' power, near "
+            f"{where}) is framed by {light['view'] or 'no'} photo alone: its place and size "
+            "are guesses (a light needs two photos from different places to be put in depth)")
     outliers = result.metrics.get("exposure_outliers") or []
     if outliers:
         listed = ", ".join(f"{o['view']} ({o['stops']:+.1f} stops)" for o in outliers)
@@ -164,7 +170,8 @@ def fit(ctx: StageContext) -> StageResult:
                 "held_out_views": len(m["held_out_views"]), "iterations": m["iterations"]},
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
-                                   "backdrop_splats", "exposure_outliers")},
+                                   "backdrop_splats", "exposure_outliers",
+                                   "single_view_lights")},
     )
 
 

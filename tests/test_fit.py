@@ -14,7 +14,7 @@ from gaslight_usd.errors import EXIT_BAD_INPUT, InputError
 from gaslight_usd.fit import fit_splats, load_fit_data, preset
 from gaslight_usd.fit.data import box_downscale, scale_camera
 from gaslight_usd.fit.losses import elongation_penalty, fit_loss, held_out_errors, ssim
-from gaslight_usd.fit.synthetic import look_at
+from gaslight_usd.fit.synthetic import look_at, ring_cameras
 from gaslight_usd.imageio import write_exr
 from gaslight_usd.ply import read_ply
 from gaslight_usd.poses.colmap import ColmapModel, write_model
@@ -336,3 +336,24 @@ def test_a_photo_with_a_wrong_exif_exposure_is_named(posed_hdr_scene, tmp_path):
     off = fit_splats(load_fit_data(hdr, root / "sparse"), cfg, seed=0)
     named = {o["view"]: o["stops"] for o in off.metrics["exposure_outliers"]}
     assert list(named) == ["view_02"] and named["view_02"] == pytest.approx(2.0, abs=0.25)
+
+
+def test_a_light_framed_by_one_camera_is_named():
+    """Three cameras on an arc looking at a set: a lamp in its middle is framed by all of
+    them and not named; a second lamp just in front of view_00 (out of the others'
+    frames) is named with that view and its share of the light."""
+    from gaslight_usd.fit.single_view import single_view_lights
+
+    cams = ring_cameras()[:3]
+    centre = np.zeros((1, 3))
+    near_first = cams[0].center[None] + 0.15 * (centre - cams[0].center[None])
+    positions = np.concatenate([centre, near_first, np.full((1, 3), 0.3)])
+    luminance = np.array([100.0, 50.0, 0.2])  # two lamps and a wall splat
+    area = np.ones(3)
+    names = [c.name for c in cams]
+    assert single_view_lights(positions[[0, 2]], luminance[[0, 2]], area[:2], cams, names,
+                              level=0.2) == []
+    found = single_view_lights(positions, luminance, area, cams, names, level=0.2)
+    assert [light.view for light in found] == ["view_00.jpg"]
+    assert found[0].share == pytest.approx(50 / 150)
+    np.testing.assert_allclose(found[0].position, near_first[0])

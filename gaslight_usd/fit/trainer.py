@@ -53,6 +53,7 @@ from .model import SplatModel
 from .pose_refine import PoseRefiner
 from .power import infer_light_power
 from .presets import FitConfig
+from .single_view import single_view_lights
 from .triangulate import triangulate_views
 
 MIN_CONTRIBUTION = 0.02
@@ -378,6 +379,16 @@ class Trainer:
         self.last_error = err if self.last_error is None else min(err, self.last_error)
         return bool(cfg.target_error and err <= cfg.target_error)
 
+    def _single_view_lights(self, scene: SplatScene, cams: list[PinholeCamera]):
+        """Bright splats only one training camera frames (:mod:`.single_view`)."""
+        weights = self.y_weights.cpu().numpy()
+        level = float(np.median(np.concatenate(
+            [(self.data.images[i] @ weights)[::2, ::2].ravel() for i in self.train]))) or 1.0
+        area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
+        return single_view_lights(scene.positions, scene.base_colours @ weights, area,
+                                  [cams[i] for i in self.train],
+                                  [self.data.names[i] for i in self.train], level)
+
     def _finish(self, t0: float, stop_reason: str, resumed: bool,
                 init_seconds: float) -> FitResult:
         """Prune idle splats, choose the SH degree, add the backdrop and the clipped
@@ -418,6 +429,8 @@ class Trainer:
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
             "clipped_lights": [light.as_dict() for light in lights],
+            "single_view_lights": [light.as_dict() for light in self._single_view_lights(
+                scene.subset(np.arange(scene.count - backdrop.count)), cams)],
             "exposure_outliers": exposure_outliers(
                 self._init_model(), self.data.cameras, self.data.images, self.data.names,
                 [self.data.floor(i) for i in range(len(self.data.images))],
