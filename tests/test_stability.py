@@ -12,7 +12,14 @@ from conftest import run_cli, write_jpeg
 
 from gaslight_usd.bench.perturb import box_blur_rows, make_capture, sees
 from gaslight_usd.bench.suite_chain import scene_lights
-from gaslight_usd.bench.suite_stability import BREAK_DB, mark_breaks, summaries, sweep, told_lines
+from gaslight_usd.bench.suite_stability import (
+    BREAK_DB,
+    BREAK_STOPS,
+    mark_breaks,
+    summaries,
+    sweep,
+    told_lines,
+)
 from gaslight_usd.errors import GaslightError
 from gaslight_usd.imageio import read_image
 from gaslight_usd.locate import example_room
@@ -72,6 +79,22 @@ def test_break_rule_and_silent_flag():
     summary = {s["perturbation"]: s for s in summaries(rows)}
     assert summary["noise"]["breaks_at"] == 0.2 and summary["noise"]["silent"]
     assert summary["noise"]["curve"].startswith("0.1:-2.5dB")
+
+
+def test_a_light_gone_astray_breaks_though_the_psnr_holds():
+    """Near the floor a run barely loses PSNR when a light goes astray; the power rule
+    sees it: the worst light's power BREAK_STOPS + 0.5 further off breaks the run."""
+    def row(kind, strength, power):
+        return {"method": "recursive", "preset": "fast", "perturbation": kind,
+                "strength": strength, "irradiance_psnr": 10.0, "power_err_stops_max": power,
+                "told_count": 0, "told": "", "error": None, "finite": True}
+    rows = [row("none", 0.0, 6.0), row("exposure", 1.0, 6.0 + BREAK_STOPS - 0.5),
+            row("light_half_out", 1.0, 6.0 + BREAK_STOPS + 0.5)]
+    mark_breaks(rows)
+    by = {r["perturbation"]: r for r in rows}
+    assert not by["exposure"]["broken"] and by["light_half_out"]["broken"]
+    assert by["light_half_out"]["power_worse_stops"] == pytest.approx(BREAK_STOPS + 0.5)
+    assert by["light_half_out"]["drop_db"] == 0.0 and by["light_half_out"]["silent"]
 
 
 def test_told_lines_and_the_sweep():

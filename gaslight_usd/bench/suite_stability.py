@@ -11,7 +11,10 @@ is scored at the probes against the path-traced truth.
 
 **Breaks** is defined as: the run fails, or its median irradiance PSNR over the probes
 is more than :data:`BREAK_DB` dB below the unperturbed run of the same method and
-preset, or a splat or probe value is NaN/Inf. A break is **silent** when the run told
+preset, or its worst light's power at the probes (median over the probes of the largest
+``|power_err|``) is more than :data:`BREAK_STOPS` stops further off than there, or a
+splat or probe value is NaN/Inf. (A run already near the floor barely loses PSNR when a
+light goes astray: the power rule sees it.) A break is **silent** when the run told
 the user nothing: no ``warning:`` line, no fallback line, no error.
 
 Rows: one per (method, preset, perturbation, strength, probe); ``told`` holds the
@@ -49,9 +52,10 @@ DESCRIPTION = "where each uplift method breaks under capture faults, and what it
 X = ("seconds", "uplift + fit seconds")
 Y = ("irradiance_psnr", "probe irradiance PSNR (dB)")
 HIGHER_IS_BETTER = True
-TABLE = ("seconds", "irradiance_psnr", "drop_db", "broken", "told_count")
+TABLE = ("seconds", "irradiance_psnr", "drop_db", "power_worse_stops", "broken", "told_count")
 METHODS = {"recursive": "uplift.recursive", "clipped photos": "uplift.linear"}
 BREAK_DB = 3.0
+BREAK_STOPS = 1.0
 """A run breaks when its median probe irradiance PSNR is this far below the unperturbed run."""
 DEFAULT_STRENGTHS: dict[str, tuple[float, ...]] = {
     "photos": (8, 4), "noise": (0.05,), "jpeg": (30, 10), "white_balance": (0.3,),
@@ -68,7 +72,8 @@ TOLD = re.compile(r"warning|does not apply|fall(s|ing)? back|fallback|failed|lef
 
 def notes(options: dict[str, Any]) -> list[str]:
     return [f"breaks: the run fails, a NaN/Inf reaches the splats or probes, or the median "
-            f"probe irradiance PSNR drops more than {BREAK_DB:g} dB below the unperturbed run; "
+            f"probe irradiance PSNR drops more than {BREAK_DB:g} dB below the unperturbed run, "
+            f"or the worst light's power at the probes is {BREAK_STOPS:g} stop(s) further off; "
             "silent: broke with no warning, fallback or error told",
             "fits shortened to {iterations} steps at {working_size} px unless --full".format(
                 **FIT_STEPS)]
@@ -187,20 +192,27 @@ def mark_breaks(rows: list[dict[str, Any]]) -> None:
     runs: dict[tuple, list[dict[str, Any]]] = {}
     for r in rows:
         runs.setdefault((r["method"], r["preset"], r["perturbation"], r["strength"]), []).append(r)
-    median = {k: float(np.nanmedian([r["irradiance_psnr"] for r in v]))
-              if any(math.isfinite(r["irradiance_psnr"]) for r in v) else math.nan
-              for k, v in runs.items()}
+    median = {k: _median(v, "irradiance_psnr") for k, v in runs.items()}
+    power = {k: _median(v, "power_err_stops_max") for k, v in runs.items()}
     for (method, preset_name, kind, strength), members in runs.items():
-        ref = median.get((method, preset_name, "none", 0.0), math.nan)
-        value = median[(method, preset_name, kind, strength)]
+        key, base = (method, preset_name, kind, strength), (method, preset_name, "none", 0.0)
+        ref, value = median.get(base, math.nan), median[key]
         drop = ref - value if math.isfinite(ref) and math.isfinite(value) else math.nan
+        worse = power[key] - power.get(base, math.nan)
         first = members[0]
         broken = bool(first["error"] or not first["finite"] or not math.isfinite(value)
-                      or (math.isfinite(drop) and drop > BREAK_DB))
+                      or (math.isfinite(drop) and drop > BREAK_DB)
+                      or (math.isfinite(worse) and worse > BREAK_STOPS))
         for r in members:
             r["drop_db"] = round(drop, 2) if math.isfinite(drop) else math.nan
+            r["power_worse_stops"] = round(worse, 2) if math.isfinite(worse) else math.nan
             r["broken"] = broken
             r["silent"] = broken and not r["told_count"]
+
+
+def _median(rows: list[dict[str, Any]], key: str) -> float:
+    values = [float(r.get(key, math.nan)) for r in rows]
+    return float(np.nanmedian(values)) if any(math.isfinite(v) for v in values) else math.nan
 
 
 def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
