@@ -123,10 +123,12 @@ def fit(ctx: StageContext) -> StageResult:
             "measured on the views it was fitted to; shoot more photos")
     for light in result.metrics.get("single_view_lights") or []:
         where = ", ".join(f"{v:.2f}" for v in light["position"])
+        framed = (f"is framed by {light['view']} alone" if light["view"]
+                  else "lies where no photo looks")
         ctx.progress.message(
             f"warning: a light ({light['power_share']:.0%} of the bright splats' power, near "
-            f"{where}) is framed by {light['view'] or 'no'} photo alone: its place and size "
-            "are guesses (a light needs two photos from different places to be put in depth)")
+            f"{where}) {framed}: its place and size are guesses (a light needs two photos "
+            "from different places to be put in depth)")
     outliers = result.metrics.get("exposure_outliers") or []
     if outliers:
         listed = ", ".join(f"{o['view']} ({o['stops']:+.1f} stops)" for o in outliers)
