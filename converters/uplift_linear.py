@@ -13,7 +13,7 @@ from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
 from gaslight_usd.kinds import Kind
 from gaslight_usd.poses.views import iter_views, write_hdr_view
 from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
-from gaslight_usd.uplift.checks import clipped_photos_warning
+from gaslight_usd.uplift.checks import clipped_photos_warning, low_quality_warning
 
 
 @dataclass
@@ -38,6 +38,9 @@ def linearise(ctx: StageContext) -> StageResult:
     warning = clipped_photos_warning([p.name for p in photos], clipped)
     if warning:
         ctx.progress.message(f"warning: {warning}")
+    quality = low_quality_warning(photos)
+    if quality:
+        ctx.progress.message(f"warning: {quality}")
     return StageResult(
         metadata={"method": "linear", "colour_space": s.working_space},
         counts={"views": len(photos)},

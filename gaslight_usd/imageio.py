@@ -191,6 +191,53 @@ def _open(path: Path) -> oiio.ImageInput:
     return inp
 
 
+_IJG_LUMINANCE = np.array([
+    16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55,
+    14, 13, 16, 24, 40, 57, 69, 56, 14, 17, 22, 29, 51, 87, 80, 62,
+    18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113, 92,
+    49, 64, 78, 87, 103, 121, 120, 101, 72, 92, 95, 98, 112, 100, 103, 99], np.float64)
+"""The JPEG standard's example luminance quantisation table (Annex K), row by row."""
+_ZIGZAG = np.array([
+    0, 1, 8, 16, 9, 2, 3, 10, 17, 24, 32, 25, 18, 11, 4, 5, 12, 19, 26, 33, 40, 48, 41, 34,
+    27, 20, 13, 6, 7, 14, 21, 28, 35, 42, 49, 56, 57, 50, 43, 36, 29, 22, 15, 23, 30, 37,
+    44, 51, 58, 59, 52, 45, 38, 31, 39, 46, 53, 60, 61, 54, 47, 55, 62, 63])
+"""Where each coefficient of a DQT segment (stored in zigzag order) sits in the block."""
+
+
+def jpeg_quality(path: str | Path) -> int | None:
+    """The IJG quality (1-100) a JPEG's luminance table was scaled for, or None (not a
+    JPEG, or no table 0). Encoders that follow libjpeg scale the standard table by
+    ``5000 / q`` % under quality 50 and ``200 - 2 q`` % above; the median ratio of the
+    file's table to the standard one inverts that."""
+    data = Path(path).read_bytes()
+    if data[:2] != b"\xff\xd8":
+        return None
+    pos = 2
+    while pos + 4 <= len(data) and data[pos] == 0xFF:
+        marker = data[pos + 1]
+        length = int.from_bytes(data[pos + 2:pos + 4], "big")
+        if marker == 0xDA:  # start of scan: no tables after it
+            return None
+        if marker == 0xDB:
+            seg, i = data[pos + 4:pos + 2 + length], 0
+            while i < len(seg):
+                wide, table = seg[i] >> 4, seg[i] & 0x0F
+                size = 128 if wide else 64
+                chunk = seg[i + 1:i + 1 + size]
+                if len(chunk) < size:  # a damaged segment: no estimate
+                    return None
+                raw = np.frombuffer(chunk, ">u2" if wide else "u1")
+                if table == 0:
+                    values = np.empty(64)
+                    values[_ZIGZAG] = raw
+                    scale = float(np.median(100.0 * values / _IJG_LUMINANCE))
+                    quality = (200.0 - scale) / 2.0 if scale <= 100.0 else 5000.0 / scale
+                    return int(np.clip(round(quality), 1, 100))
+                i += 1 + size
+        pos += 2 + length
+    return None
+
+
 def _one_line(text: str) -> str:
     """OpenImageIO repeats its message once per failed chunk: keep each line once."""
     lines = [line.strip() for line in text.splitlines() if line.strip()]

@@ -126,3 +126,25 @@ def test_killed_writer_process_leaves_no_final_file(tmp_path):
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not final.exists()
+
+
+def test_jpeg_quality_is_read_from_the_quantisation_tables(tmp_path):
+    """Written by OpenImageIO (libjpeg) at a quality, read back within one step; not a
+    JPEG or a damaged table: None."""
+    from gaslight_usd.imageio import jpeg_quality
+
+    pixels = np.random.default_rng(0).uniform(0, 255, (32, 32, 3)).astype(np.uint8)
+    for quality in (30, 50, 75, 93):
+        path = tmp_path / f"q{quality}.jpg"
+        spec = oiio.ImageSpec(32, 32, 3, oiio.UINT8)
+        spec.attribute("Compression", f"jpeg:{quality}")
+        out = oiio.ImageOutput.create(str(path))
+        assert out.open(str(path), spec) and out.write_image(pixels)
+        out.close()
+        assert abs(jpeg_quality(path) - quality) <= 1
+    data = (tmp_path / "q30.jpg").read_bytes()
+    dqt = data.index(b"\xff\xdb")
+    (tmp_path / "cut.jpg").write_bytes(data[:dqt + 30])
+    assert jpeg_quality(tmp_path / "cut.jpg") is None
+    (tmp_path / "x.png").write_bytes(b"\x89PNG\r\n")
+    assert jpeg_quality(tmp_path / "x.png") is None

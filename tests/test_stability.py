@@ -7,6 +7,7 @@ import json
 import math
 
 import numpy as np
+import OpenImageIO as oiio
 import pytest
 from conftest import run_cli, write_jpeg
 
@@ -119,6 +120,25 @@ def test_a_mostly_clipped_photo_is_named(method, photo_folder, tmp_path):
     assert len(lines) == 1
     assert "1 of 4 photo(s)" in lines[0] and "shot_white.jpg (100%)" in lines[0]
     assert "shot_0.jpg" not in lines[0]  # its 8x8 clipped corner is 2% of it
+
+
+@pytest.mark.parametrize("method", ["linear", "recursive"])
+def test_a_low_quality_jpeg_is_named(method, photo_folder, tmp_path):
+    """The sweep's JPEG 30 and 10 moved the lights 1-1.5 stops, silently: a photo saved
+    under quality 50 is now named (the fixture's photos are saved at 95)."""
+    src = photo_folder / "shot_1.jpg"
+    pixels = oiio.ImageBuf(str(src)).get_pixels(oiio.UINT8)
+    spec = oiio.ImageSpec(oiio.ImageInput.open(str(src)).spec())
+    spec.attribute("Compression", "jpeg:20")
+    path = photo_folder / "shot_low.jpg"
+    out = oiio.ImageOutput.create(str(path))
+    assert out.open(str(path), spec) and out.write_image(pixels)
+    out.close()
+    res = run_cli("hdr", str(photo_folder), "-o", str(tmp_path / "hdr"), "--method", method)
+    assert res.returncode == 0, res.stderr
+    lines = [ln for ln in res.stderr.splitlines() if "low JPEG quality" in ln]
+    assert len(lines) == 1 and "1 of 4 photo(s)" in lines[0]
+    assert "shot_low.jpg (~20)" in lines[0] and "shot_1.jpg" not in lines[0]
 
 
 def test_clipped_photos_warning_threshold():

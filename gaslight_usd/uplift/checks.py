@@ -4,12 +4,20 @@ A photo that is mostly white holds no measurement: the uplift still makes an HDR
 of it (the recursive predictor invents one, the linear method leaves it flat at the
 white level), and the fit treats that view like the others. Found silently by
 ``gaslight2usd bench --suite stability`` (perturbation ``clipped_frames``); now named.
+So are photos saved at a low JPEG quality: the blocks smear the edges of clipped
+regions, which the uplift reads as the lights' size (perturbation ``jpeg``: quality 30
+and 10 put the lights' power at the probes 1-1.5 stops further off, silently).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
+from ..imageio import jpeg_quality
+
+LOW_JPEG_QUALITY = 50
+"""JPEG quality under which a photo is named."""
 MOSTLY_CLIPPED = 0.5
 """Share of a photo's pixels at white above which it is called mostly clipped."""
 
@@ -25,3 +33,17 @@ def clipped_photos_warning(names: Sequence[str], fractions: Sequence[float],
     return (f"{len(bad)} of {len(names)} photo(s) are mostly clipped (over {limit:.0%} of "
             f"their pixels at white): {shown}; their HDR views are guesses, not measurements: "
             "reshoot them darker or leave them out")
+
+
+def low_quality_warning(paths: Sequence[Path], limit: int = LOW_JPEG_QUALITY) -> str | None:
+    """One line naming the JPEG photos saved at a quality under ``limit`` (estimated
+    from their quantisation tables, :func:`gaslight_usd.imageio.jpeg_quality`), or None."""
+    bad = [(p.name, q) for p in paths
+           if p.suffix.lower() in (".jpg", ".jpeg") and (q := jpeg_quality(p)) is not None
+           and q < limit]
+    if not bad:
+        return None
+    shown = ", ".join(f"{n} (~{q})" for n, q in bad[:5]) + (" ..." if len(bad) > 5 else "")
+    return (f"{len(bad)} of {len(paths)} photo(s) were saved at a low JPEG quality: {shown}; "
+            "block artefacts blur the clipped lights' edges and bias their power: export "
+            f"at quality {limit} or more (or shoot RAW/TIFF)")
