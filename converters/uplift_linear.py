@@ -13,7 +13,7 @@ from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
 from gaslight_usd.kinds import Kind
 from gaslight_usd.poses.views import iter_views, write_hdr_view
 from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
-from gaslight_usd.uplift.checks import clipped_photos_warning, low_quality_warning
+from gaslight_usd.uplift.checks import photo_set_warnings
 
 
 @dataclass
@@ -35,12 +35,8 @@ def linearise(ctx: StageContext) -> StageResult:
                        s.ocio_config)
         clipped.append(view.clipped_fraction)
         ctx.progress.update(i, len(photos), view=view.name)
-    warning = clipped_photos_warning([p.name for p in photos], clipped)
-    if warning:
+    for warning in photo_set_warnings(photos, clipped):
         ctx.progress.message(f"warning: {warning}")
-    quality = low_quality_warning(photos)
-    if quality:
-        ctx.progress.message(f"warning: {quality}")
     return StageResult(
         metadata={"method": "linear", "colour_space": s.working_space},
         counts={"views": len(photos)},

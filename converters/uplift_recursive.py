@@ -11,7 +11,7 @@ from gaslight_usd.imageio import LDR_EXTENSIONS, list_images
 from gaslight_usd.kinds import Kind
 from gaslight_usd.poses.views import iter_views, write_hdr_view
 from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
-from gaslight_usd.uplift.checks import clipped_photos_warning, low_quality_warning
+from gaslight_usd.uplift.checks import photo_set_warnings
 from gaslight_usd.uplift.pipeline import (
     UpliftOptions,
     make_predictor,
@@ -38,12 +38,8 @@ def uplift(ctx: StageContext) -> StageResult:
         after.append(result.attributes["gaslight:clipped_fraction_after"])
         before.append(view.clipped_fraction)
         ctx.progress.update(i, len(photos), view=view.name, steps=steps[-1])
-    warning = clipped_photos_warning([p.name for p in photos], before)
-    if warning:
+    for warning in photo_set_warnings(photos, before):
         ctx.progress.message(f"warning: {warning}")
-    quality = low_quality_warning(photos)
-    if quality:
-        ctx.progress.message(f"warning: {quality}")
     return StageResult(
         metadata={"method": "recursive", "predictor": predictor.name,
                   "colour_space": s.working_space, "curve": transform.curve.name},

@@ -47,3 +47,10 @@ def low_quality_warning(paths: Sequence[Path], limit: int = LOW_JPEG_QUALITY) ->
     return (f"{len(bad)} of {len(paths)} photo(s) were saved at a low JPEG quality: {shown}; "
             "block artefacts blur the clipped lights' edges and bias their power: export "
             f"at quality {limit} or more (or shoot RAW/TIFF)")
+
+
+def photo_set_warnings(paths: Sequence[Path], clipped_fractions: Sequence[float]) -> list[str]:
+    """Every warning of this module for an uplifted photo set, in the order they are told."""
+    found = (clipped_photos_warning([p.name for p in paths], clipped_fractions),
+             low_quality_warning(paths))
+    return [w for w in found if w]
