@@ -5,8 +5,8 @@ of it (the recursive predictor invents one, the linear method leaves it flat at 
 white level), and the fit treats that view like the others. Found silently by
 ``gaslight2usd bench --suite stability`` (perturbation ``clipped_frames``); now named.
 So are photos saved at a low JPEG quality: the blocks smear the edges of clipped
-regions, which the uplift reads as the lights' size (perturbation ``jpeg``: quality 30
-and 10 put the lights' power at the probes 1-1.5 stops further off, silently).
+regions, which the uplift reads as the lights' size (perturbation ``jpeg`` measures what
+that costs at the probes).
 """
 
 from __future__ import annotations
