@@ -39,6 +39,7 @@ from ..cameras import PinholeCamera
 from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
+from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
 from ..splats import SplatScene
@@ -389,6 +390,15 @@ class Trainer:
                                   [cams[i] for i in self.train],
                                   [self.data.names[i] for i in self.train], level)
 
+    def _pose_agreement(self) -> dict[str, Any] | None:
+        """How the given poses agree with the photos (:mod:`gaslight_usd.poses.agreement`):
+        the triangulation's matches, else the model's own observations; None when
+        neither exists (the splats bend to wrong poses silently, so say it here)."""
+        agreement = pose_agreement(self._init_model())
+        if agreement is None and self._init_model() is not self.data.model:
+            agreement = pose_agreement(self.data.model)
+        return agreement.as_dict() if agreement is not None else None
+
     def _finish(self, t0: float, stop_reason: str, resumed: bool,
                 init_seconds: float) -> FitResult:
         """Prune idle splats, choose the SH degree, add the backdrop and the clipped
@@ -435,6 +445,7 @@ class Trainer:
                 self._init_model(), self.data.cameras, self.data.images, self.data.names,
                 [self.data.floor(i) for i in range(len(self.data.images))],
                 self.y_weights.cpu().numpy()),
+            "pose_agreement": self._pose_agreement(),
         }
         if self.refiner is not None:
             metrics["pose_refinement"] = self.refiner.summary(

@@ -114,6 +114,10 @@ class ColmapModel:
     notes: list[str] = field(default_factory=list)
     """Things a user should know about this model (distortion ignored, ...)."""
     source: Path | None = None
+    agreement: Any = None
+    """How well the poses agree with the photos' feature matches, when measured (a
+    :class:`~gaslight_usd.poses.agreement.PoseAgreement`, set by triangulation); not
+    written to disk."""
 
     def __post_init__(self) -> None:
         n = len(self.cameras)

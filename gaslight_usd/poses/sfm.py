@@ -488,6 +488,7 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
             db = pycolmap.Database.open(db_path)
             try:
                 db_ids = {im.name: (im.image_id, im.camera_id) for im in db.read_all_images()}
+                agreement = _match_agreement(db, model, db_ids)
             finally:
                 db.close()
             intr = {}
@@ -530,5 +531,28 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
                          point_ids=filled.point_ids, image_ids=model.image_ids,
                          camera_ids=model.camera_ids, intrinsics=model.intrinsics,
                          points2d=points2d, tracks=tracks, frame=dict(model.frame),
-                         notes=list(model.notes), source=model.source)
+                         notes=list(model.notes), source=model.source, agreement=agreement)
+    if agreement is not None and agreement.warns:
+        result.notes.append(agreement.sentence())
     return result
+
+
+def _match_agreement(db: Any, model: ColmapModel, db_ids: dict[str, tuple[int, int]]):
+    """The verified matches in ``db`` against ``model``'s given poses
+    (:func:`gaslight_usd.poses.agreement.epipolar_agreement`); None without matches."""
+    import pycolmap
+
+    from .agreement import epipolar_agreement
+
+    name_of = {iid: name for name, (iid, _) in db_ids.items()}
+    pair_ids, geometries = db.read_two_view_geometries()
+    matches = []
+    for pid, geometry in zip(pair_ids, geometries, strict=True):
+        a, b = pid if isinstance(pid, tuple) else pycolmap.pair_id_to_image_pair(pid)
+        inliers = np.asarray(geometry.inlier_matches, np.int64).reshape(-1, 2)
+        if a in name_of and b in name_of and len(inliers):
+            matches.append((name_of[a], name_of[b], inliers))
+    used = {n for a, b, _ in matches for n in (a, b)}
+    keypoints = {name_of[iid]: np.asarray(db.read_keypoints(iid), np.float64)[:, :2]
+                 for iid in name_of if name_of[iid] in used}
+    return epipolar_agreement(model, keypoints, matches)
