@@ -129,6 +129,8 @@ def fit(ctx: StageContext) -> StageResult:
             f"warning: a light ({light['power_share']:.0%} of the bright splats' power, near "
             f"{where}) {framed}: its place and size are guesses (a light needs two photos "
             "from different places to be put in depth)")
+    for light in result.metrics.get("cut_lights") or []:
+        ctx.progress.message(f"warning: {light['warning']}")
     agreement = result.metrics.get("pose_agreement") or {}
     if agreement.get("warning"):
         ctx.progress.message(f"warning: {agreement['warning']}")
@@ -176,7 +178,7 @@ def fit(ctx: StageContext) -> StageResult:
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
                                    "backdrop_splats", "exposure_outliers",
-                                   "single_view_lights", "pose_agreement")},
+                                   "single_view_lights", "pose_agreement", "cut_lights")},
     )
 
 

@@ -186,23 +186,32 @@ def _motion_blur(views, s, rng, light):
     return views, 93, f"horizontal motion blur over {int(s)} px"
 
 
+def edge_crop(cam: Any, point: np.ndarray, share: float = CROP_WIDTH) -> int | None:
+    """The first column of a crop ``share`` of ``cam``'s width wide with ``point`` on its
+    left or right edge (the middle columns when ``cam`` does not see ``point``); None
+    when no such crop holds it on an edge (it sits in the middle)."""
+    width = int(round(cam.width * share))
+    seen, (u, _) = sees(cam, point)
+    if not seen:
+        return (cam.width - width) // 2
+    if u <= cam.width - width:
+        return int(round(u))
+    if u >= width:
+        return int(round(u)) - width
+    return None
+
+
 def _light_half_out(views, s, rng, light):
     if light is None:
         return views, 93, "no light given"
     centre = np.asarray(light["center"], np.float64)
     out, dropped = [], 0
     for v in views:
-        width = int(round(v.cam.width * CROP_WIDTH))
-        seen, (u, _) = sees(v.cam, centre)
-        if not seen:
-            x0 = (v.cam.width - width) // 2
-        elif u <= v.cam.width - width:
-            x0 = int(round(u))
-        elif u >= width:
-            x0 = int(round(u)) - width
-        else:
+        x0 = edge_crop(v.cam, centre)
+        if x0 is None:
             dropped += 1
             continue
+        width = int(round(v.cam.width * CROP_WIDTH))
         v.radiance = v.radiance[:, x0:x0 + width]
         v.cam = dataclasses.replace(v.cam, width=width, cx=v.cam.cx - x0)
         out.append(v)

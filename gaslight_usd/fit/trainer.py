@@ -48,6 +48,7 @@ from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
 from .exposure_check import exposure_outliers
+from .frame_edge import CutLight, cut_lights, white_ratios
 from .init import initial_points, neighbour_scales
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
@@ -390,6 +391,20 @@ class Trainer:
                                   [cams[i] for i in self.train],
                                   [self.data.names[i] for i in self.train], level)
 
+    def _cut_lights(self) -> list[CutLight]:
+        """Lights the frame cuts in every view that sees them (:mod:`.frame_edge`), from
+        every view (held-out ones too: a photo that frames the light whole is a
+        measurement the user took). None unless some view clipped (the white is the
+        median of the views' brightest clip floors, as :meth:`FitData.measures_highlights`)."""
+        whites = [float(f.max()) for f in (self.data.floor(i)
+                                           for i in range(len(self.data.images)))
+                  if f is not None]
+        if not whites:
+            return []
+        ratios = white_ratios(self.data.images, float(np.median(whites)),
+                              self.y_weights.cpu().numpy())
+        return cut_lights(self.data.cameras, ratios, self.data.names)
+
     def _pose_agreement(self) -> dict[str, Any] | None:
         """How the given poses agree with the photos (:mod:`gaslight_usd.poses.agreement`):
         the triangulation's matches, else the model's own observations; None when
@@ -446,6 +461,7 @@ class Trainer:
                 [self.data.floor(i) for i in range(len(self.data.images))],
                 self.y_weights.cpu().numpy()),
             "pose_agreement": self._pose_agreement(),
+            "cut_lights": [light.as_dict() for light in self._cut_lights()],
         }
         if self.refiner is not None:
             metrics["pose_refinement"] = self.refiner.summary(
