@@ -8,6 +8,7 @@ import json
 import math
 import sys
 import types
+from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
@@ -266,3 +267,33 @@ def test_brackets_suite_groups_every_position_and_scores_the_merge(tmp_path):
     assert all(r["grouped"] == 1 and r["views"] == 7 for r in rows)
     assert all(r["brightest_clipped"] >= 0.6 for r in rows)
     assert all(0 < r["median_stop_err"] < 0.1 for r in rows)
+
+
+def test_budget_suite_refit_fits_each_budget_from_scratch():
+    """``--refit``: a fit per budget on the synthetic room's views; each stays within its
+    budget, scores on the same held-out views as the full fit it is compared with (its
+    cost is its error minus the full fit's), and the smaller budget keeps fewer splats."""
+    from gaslight_usd.bench.suite_budget import notes, refit_rows
+    from gaslight_usd.fit import fit_splats, preset
+    from gaslight_usd.fit.smallest import model_bytes, score
+    from gaslight_usd.fit.synthetic import synthetic_data
+
+    _, data = synthetic_data()
+    cfg = preset("fast").updated(working_size=0, iterations=24, init_points=400,
+                                 densify_every=8, checkpoint_every=8, sh_raise_every=12)
+    full = fit_splats(data, cfg, seed=0)
+    held = [data.names.index(n) for n in full.metrics["held_out_views"]]
+    assert held
+    full_err = score(full.scene, [full.cameras[i] for i in held],
+                     [data.images[i] for i in held])
+    rows = refit_rows(data, cfg, 0, [300, 120], held, Path("no-probes"), full_err,
+                      True, "lin_rec709")  # quick: no probe render, so no folder read
+    assert [r["budget"] for r in rows] == [120, 300]
+    for r in rows:
+        assert r["method"] == "splat budget (refit)"
+        assert 0 < r["splats"] <= r["budget"]
+        assert r["size_bytes"] == model_bytes(r["splats"], r["sh_degree"])
+        assert r["cost_stops"] == pytest.approx(r["error_stops"] - full_err, abs=2e-4)
+        assert r["seconds"] > 0 and math.isnan(r["irradiance_psnr"])
+    assert rows[0]["splats"] < rows[1]["splats"]
+    assert "refit" in notes({"refit": True})[0] and "--refit" in notes({})[0]

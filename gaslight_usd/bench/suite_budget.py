@@ -11,6 +11,11 @@ is what is measured, not the uplift), then the model cut down the ways a user ca
 * ``rig`` -- the light rig with at most k lights (:func:`gaslight_usd.usd.rig.fit_rig`);
   error: log2(1 + its relative irradiance error at the probe).
 
+With ``--refit`` each splat budget of the cut-down rows is also fitted from scratch
+(``splat budget (refit)``: ``fit.budget`` set to that count, same seed and views), so a
+user sees what cutting one fit loses against fitting small (the fit then chooses which
+splats to grow under the budget); its ``seconds`` is that fit's.
+
 Splat and SH rows carry ``error_stops`` (log-luminance RMSE on the fit's held-out
 views), ``cost_stops`` (that minus the full model's) and ``irradiance_psnr`` at probe 0
 against the path-traced truth; ``seconds`` is what the form costs to make or draw (the
@@ -19,6 +24,7 @@ size. The chart puts error against size; ``budget-time.png`` error against secon
 The smallest form within a tolerance is then read off the table::
 
     gaslight2usd bench --suite budget -o DIR
+    gaslight2usd bench --suite budget --refit -o DIR   # + one fit per budget
 """
 
 from __future__ import annotations
@@ -52,8 +58,10 @@ FIT_STEPS = {"iterations": 200}
 
 def notes(options: dict[str, Any]) -> list[str]:
     steps = "" if options.get("full") else f", {FIT_STEPS['iterations']} steps"
+    refit = ("; 'splat budget (refit)': each budget fitted from scratch (seconds: its fit)"
+             if options.get("refit") else " (no refit; --refit fits each budget too)")
     return [f"room from true HDR views, preset {(options.get('presets') or ('fast',))[0]}"
-            f"{steps}; splat shares ranked by contribution (no refit); palette and rig "
+            f"{steps}; splat shares ranked by contribution{refit}; palette and rig "
             "errors are against the splats themselves, not the truth"]
 
 
@@ -90,6 +98,29 @@ def splat_rows(result, data, folder: Path, held: list[int], train: list[int],
                          "seconds": round(seconds, 3), "error_stops": round(err, 4),
                          "cost_stops": round(err - full_err, 4),
                          "irradiance_psnr": psnr})
+    return rows
+
+
+def refit_rows(data, cfg, seed: int, counts: list[int], held: list[int], folder: Path,
+               full_err: float, quick: bool, space: str) -> list[dict[str, Any]]:
+    """Each budget in ``counts`` fitted from scratch with ``cfg`` (``fit.budget`` = the
+    count): held-out error on the same ``held`` views, cost against the full fit's
+    ``full_err``, probe 0 PSNR, and the fit's seconds."""
+    rows = []
+    for count in sorted(counts):
+        t0 = time.perf_counter()
+        result = fit_splats(data, cfg.updated(budget=int(count)), seed=seed)
+        seconds = time.perf_counter() - t0
+        scene = result.scene
+        err = score(scene, [result.cameras[i] for i in held], [data.images[i] for i in held])
+        rows.append({"method": "splat budget (refit)",
+                     "setting": f"budget {count}: {scene.count} splats, SH {scene.sh_degree}",
+                     "splats": scene.count, "sh_degree": scene.sh_degree, "budget": int(count),
+                     "size_bytes": model_bytes(scene.count, scene.sh_degree),
+                     "seconds": round(seconds, 2), "error_stops": round(err, 4),
+                     "cost_stops": round(err - full_err, 4),
+                     "irradiance_psnr": math.nan if quick else probe0_psnr(scene, folder,
+                                                                            space)})
     return rows
 
 
@@ -170,6 +201,14 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     train = [i for i in range(len(names)) if i not in held]
     position, _ = _probe(folder)
     rows = splat_rows(result, data, folder, held, train, quick, data.colour_space)
+    if options.get("refit"):
+        full = next(r for r in rows if r["method"] == "splat budget"
+                    and r["splats"] == result.scene.count)
+        counts = [r["splats"] for r in rows if r["method"] == "splat budget"
+                  and r["splats"] < result.scene.count]
+        rows += refit_rows(data, cfg, seed, counts[:1] if quick else counts, held, folder,
+                           full["error_stops"] - full["cost_stops"], quick,
+                           data.colour_space)
     rows += palette_rows(result.scene, quick)
     rows += rig_rows(result.scene, position, data.colour_space, quick)
     for r in rows:

@@ -67,6 +67,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="stability suite: every strength of each perturbation, not the "
                         "default few; stability and budget suites: fits with the preset as "
                         "it is (not shortened)")
+    p.add_argument("--refit", action="store_true",
+                   help="budget suite: also fit each splat budget from scratch (one fit per "
+                        "budget), besides cutting the one full fit down")
     p.add_argument("--from", dest="sources", action="append", type=Path, default=[],
                    metavar="DIR", help="tradeoff suite: folders of earlier bench results "
                                        "(<suite>.json) to chart (repeatable; default: "
@@ -145,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
                "methods": list(args.method) or None, "scenes": tuple(args.scene) or None,
                "photos": args.photos, "megapixels": args.megapixels,
                "perturbations": list(args.perturb) or None, "full": args.full,
+               "refit": args.refit,
                "sources": list(args.sources) or None}
     results = []
     for name in names:
