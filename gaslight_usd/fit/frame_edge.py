@@ -53,6 +53,9 @@ RAY_GAP_DEG = 2.0
 """Two views' region rays closer than this angle (seen from the nearer camera) meet."""
 REACH_PX = 2.0
 """A candidate lands on a region within this many view pixels of it."""
+MAX_RAYS = 1500
+"""At most this many cut regions place candidates (the brightest): pairs grow with the
+square, and a capture of hundreds of photos should not spend minutes here."""
 MIN_VIEWS = 3
 """Views that must cut a candidate (two make it; a third confirms it is one light)."""
 LIGHT_PEAK = 4.0
@@ -208,7 +211,7 @@ def cut_lights(cameras: list[PinholeCamera], ratios: list[np.ndarray], names: li
     if len(cameras) < 2:
         return []
     regions = [light_regions(r) for r in ratios]
-    origins, dirs, owner = [], [], []
+    origins, dirs, owner, bright = [], [], [], []
     for v, (cam, reg) in enumerate(zip(cameras, regions, strict=True)):
         picked = np.flatnonzero(reg.kind == CUT) - 1
         if not len(picked):
@@ -217,9 +220,13 @@ def cut_lights(cameras: list[PinholeCamera], ratios: list[np.ndarray], names: li
         dirs.append(pixel_rays(cam, reg.centroids[picked] * [cam.width / w, cam.height / h]))
         origins.append(np.repeat(cam.center[None], len(picked), axis=0))
         owner.append(np.full(len(picked), v))
+        bright.append(reg.peak[picked + 1])
     if not owner:
         return []
     o, d, view = np.concatenate(origins), np.concatenate(dirs), np.concatenate(owner)
+    if len(view) > MAX_RAYS:
+        top = np.argsort(-np.concatenate(bright), kind="stable")[:MAX_RAYS]
+        o, d, view = o[top], d[top], view[top]
     a, b = np.triu_indices(len(view), k=1)
     pair = view[a] != view[b]
     points, gap = meeting_points(o[a[pair]], d[a[pair]], o[b[pair]], d[b[pair]])
