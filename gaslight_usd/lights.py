@@ -35,11 +35,13 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    featureless light fits at any depth along the rays that see it, so a fit
    leaves some of its splats behind the wall or ceiling it is set in. Seen from
    the captured space's viewpoint, a cluster farther than the median distance
-   of the other opaque splats within :data:`SURFACE_CONE_DEG` of its direction
+   of the opaque splats no brighter than :data:`SURFACE_STOPS` above white (and
+   not emitters) within :data:`SURFACE_CONE_DEG` of its direction
    (plus its own size) is placed onto that surface along the rays
    (:func:`onto_surfaces`; the splats themselves are not moved), and clusters
    whose outlines overlap as seen from there, within :data:`SMEAR_DEG`, are
-   one light smeared in depth, placed at the nearest one's distance.
+   one light smeared in depth, each part placed at the nearest part's distance
+   (:data:`SMEAR_POWER_SHARE`).
 5. Emitter clusters closer than their own sizes plus :data:`GROUP_SHARE` of
    the captured space's median depth are **grouped into lights**:
    position (power-weighted centre), size (principal half-extents), power
@@ -106,6 +108,12 @@ median distance, robust to the fit's depth smear of that surface. About two dire
 bins of :mod:`gaslight_usd.surroundings` across: a ``fast`` fit's ceiling is sparse where
 a lamp lights it (``gaslight2usd run examples/room/photos``: the patch sunk over the
 lamp finds too few splats in one bin's cone)."""
+SURFACE_STOPS = 1.0
+"""Splats at most this many stops above the photos' white can be the surface a light is
+seen through: a lit ceiling over a lamp is a little above white (the set is exposed for
+its walls), while a flat light's own depth-smeared copies lie far above it and are no
+surface (``gaslight2usd run`` on a ``make_room.py --variant bulb`` room: a ``fast`` fit
+leaves a window-coloured sheet well in front of the window)."""
 SURFACE_MIN_SPLATS = 5
 """Fewer surface splats in the cone than this: no surface there, the cluster stays."""
 SMEAR_DEG = 2.0
@@ -114,6 +122,11 @@ radii plus this are one light smeared along the viewing rays: the photos see the
 through the same pixels, so they cannot tell their depths apart (a ceiling panel fitted
 partly above the ceiling: ``gaslight2usd run`` on the chain bench's ``panels`` photos
 without poses, docs/measurements.md)."""
+SMEAR_POWER_SHARE = 0.25
+"""A light smeared along the rays is placed at its nearest part holding at least this
+share of a farther part's power: the photos put a light on the first surface along the
+ray, but a lone floater the fit left in front of a window does not carry the window
+forward (``make_room.py --variant bulb`` photos, ``gaslight2usd run``)."""
 GROUP_SHARE = 0.15
 """Emitter clusters closer than this share of the captured space's median depth (plus
 their own sizes) are one light (a window fitted as many patches)."""
@@ -287,12 +300,22 @@ def _light(scene: SplatScene, idx: np.ndarray, area: np.ndarray, colours: np.nda
                  power_source=source, power_uncertainty_stops=POWER_UNCERTAINTY_STOPS[source])
 
 
+def surface_splats(radiance: np.ndarray, opacity: np.ndarray, backdrop: np.ndarray,
+                   white: float) -> np.ndarray:
+    """(N,) splats that can be the surface a light is seen through: opaque (above the
+    captured space's ``OPAQUE``), not ``backdrop``, at most :data:`SURFACE_STOPS` above
+    ``white`` (``radiance`` (N,) the splats' largest channel)."""
+    return (~np.asarray(backdrop, bool) & (np.asarray(opacity) > OPAQUE)
+            & (np.asarray(radiance) <= white * 2.0**SURFACE_STOPS))
+
+
 def onto_surfaces(positions: np.ndarray, clusters: list[np.ndarray], viewpoint: np.ndarray,
                   surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Emitter clusters sunk behind the surface they are seen through, moved onto it.
 
     ``positions`` (N, 3) all splats; ``clusters`` index arrays into them; ``surface``
-    (N,) bool, the splats that make surfaces (opaque, not backdrop, not emitters). From
+    (N,) bool, the splats that make surfaces (opaque, not backdrop, not emitters, at
+    most :data:`SURFACE_STOPS` above white). From
     ``viewpoint`` (3,), a cluster's surface is the median distance of the surface splats within
     :data:`SURFACE_CONE_DEG` of its centre's direction (at least
     :data:`SURFACE_MIN_SPLATS` of them); a cluster whose centre lies farther than that
@@ -324,14 +347,16 @@ def onto_surfaces(positions: np.ndarray, clusters: list[np.ndarray], viewpoint: 
     return out, sunk
 
 
-def _group(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.ndarray,
-           viewpoint: np.ndarray, gap: float) -> tuple[np.ndarray, np.ndarray]:
+def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.ndarray,
+           power: np.ndarray, viewpoint: np.ndarray, gap: float
+           ) -> tuple[np.ndarray, np.ndarray]:
     """Light label (K,) of each emitter cluster and the distance (K,) each is seen at.
 
     Clusters are linked when their reaches (spread plus ``gap``) touch, or when their
     outlines (splats' spread plus footprints ``sigma`` (N,)) overlap within
     :data:`SMEAR_DEG` as seen from ``viewpoint`` (one light smeared along the rays): a
-    cluster lying behind such a one by more than its own reach is seen at that one's
+    cluster lying behind such one by more than its own reach, one holding at least
+    :data:`SMEAR_POWER_SHARE` of its ``power`` (K,), is seen at the nearest such one's
     distance.
     """
     centres = np.array([positions[i].mean(0) for i in clusters])
@@ -345,7 +370,8 @@ def _group(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.ndarray,
     near = np.linalg.norm(centres[:, None] - centres[None], axis=2) <= (
         reach[:, None] + reach[None] + 2.0 * gap)
     smear = between <= ang[:, None] + ang[None] + np.radians(SMEAR_DEG)
-    behind = smear & (dist[None] < dist[:, None] - reach[:, None])
+    behind = smear & (dist[None] < dist[:, None] - reach[:, None]) & (
+        power[None] >= SMEAR_POWER_SHARE * power[:, None])
     seen_at = np.where(behind, dist[None], dist[:, None]).min(axis=1)
     return connected_components(coo_matrix(near | smear), directed=False)[1], seen_at
 
@@ -419,7 +445,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     # clusters within each other's reach or overlapping along the viewing rays, each
     # group at its nearest member's distance from the viewpoint.
     viewpoint = space.viewpoints.mean(0)
-    surface = not_backdrop & (opacity > OPAQUE)  # lit surfaces too: a lamp lights its ceiling
+    surface = surface_splats(radiance, opacity, backdrop, white)
     surface[np.concatenate(emitting)] = False
     placed, sunk = onto_surfaces(positions, emitting, viewpoint, surface)
     # a sunk cluster is tested again where it belongs: on the surface, a patch of ceiling
@@ -431,7 +457,8 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     if not emitting:
         return LightSearch([], emitters, backdrop, space, white, source,
                            {**counts, "emitters": 0})
-    groups, seen_at = _group(placed, emitting, sigma, viewpoint,
+    cluster_power = np.array([(radiance[i] * area[i]).sum() for i in emitting])
+    groups, seen_at = group_clusters(placed, emitting, sigma, cluster_power, viewpoint,
                              GROUP_SHARE * space.median_depth() / 2.0)
     for k, idx in enumerate(emitting):
         dist = float(np.linalg.norm(placed[idx].mean(0) - viewpoint))

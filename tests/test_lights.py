@@ -257,3 +257,28 @@ def test_an_emitter_behind_the_surface_it_is_seen_through_is_moved_onto_it():
                                pos[400:402] / np.linalg.norm(pos[400:402], axis=1)[:, None])
     np.testing.assert_array_equal(moved[402:], pos[402:])
     np.testing.assert_array_equal(moved[:400], pos[:400])
+
+
+def test_a_lights_bright_copy_is_no_surface_to_see_it_through():
+    """A lit ceiling a little above white is a surface; a window-coloured sheet a fit left
+    in front of its window (several times white) is the light's own smear, not a wall."""
+    radiance = np.array([0.4, 1.5, 1.9, 6.0, 0.4, 0.4])
+    opacity = np.array([0.9, 0.9, 0.9, 0.9, 0.05, 0.9])
+    backdrop = np.array([False, False, False, False, False, True])
+    np.testing.assert_array_equal(lights.surface_splats(radiance, opacity, backdrop, 1.0),
+                                  [True, True, True, False, False, False])
+
+
+def test_a_light_smeared_along_the_rays_sits_at_its_nearest_strong_part():
+    """Along one ray from the origin: a lone weak floater at 2 m, the light at 3 m, a part
+    of it sunk to 3.6 m. One light; the sunk part is seen at 3 m, the light is not pulled
+    forward onto the floater."""
+    ray = np.array([0.3, 0.1, 1.0]) / np.linalg.norm([0.3, 0.1, 1.0])
+    pos = np.concatenate([ray * 2.0 + np.zeros((1, 3)), ray * 3.0 + np.array(
+        [[0.02, 0, 0], [-0.02, 0, 0], [0, 0.02, 0]]), ray * 3.6 + np.zeros((1, 3))])
+    clusters = [np.array([0]), np.array([1, 2, 3]), np.array([4])]
+    sigma = np.full(len(pos), 0.03)
+    power = np.array([0.05, 1.0, 0.4])
+    labels, seen_at = lights.group_clusters(pos, clusters, sigma, power, np.zeros(3), 0.05)
+    assert len(set(labels.tolist())) == 1
+    np.testing.assert_allclose(seen_at, [2.0, 3.0, 3.0], atol=0.01)
