@@ -37,11 +37,12 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    the captured space's viewpoint, a cluster farther than the median distance
    of the opaque splats no brighter than :data:`SURFACE_STOPS` above white (and
    not emitters) within :data:`SURFACE_CONE_DEG` of its direction
-   (plus its own size) is placed onto that surface along the rays
-   (:func:`onto_surfaces`; the splats themselves are not moved), and clusters
+   (plus its own size) is placed onto that surface along the rays and tested
+   again there (:func:`onto_surfaces`; a patch of ceiling sunk over a lamp is
+   nearer the lamp on it; the splats themselves are not moved), and clusters
    whose outlines overlap as seen from there, within :data:`SMEAR_DEG`, are
-   one light smeared in depth, each part placed at the nearest part's distance
-   (:data:`SMEAR_POWER_SHARE`).
+   one light smeared in depth, each part placed at the nearest strong part's
+   distance (:data:`SMEAR_POWER_SHARE`, :func:`group_clusters`).
 5. Emitter clusters closer than their own sizes plus :data:`GROUP_SHARE` of
    the captured space's median depth are **grouped into lights**:
    position (power-weighted centre), size (principal half-extents), power
@@ -314,10 +315,9 @@ def onto_surfaces(positions: np.ndarray, clusters: list[np.ndarray], viewpoint: 
     """Emitter clusters sunk behind the surface they are seen through, moved onto it.
 
     ``positions`` (N, 3) all splats; ``clusters`` index arrays into them; ``surface``
-    (N,) bool, the splats that make surfaces (opaque, not backdrop, not emitters, at
-    most :data:`SURFACE_STOPS` above white). From
-    ``viewpoint`` (3,), a cluster's surface is the median distance of the surface splats within
-    :data:`SURFACE_CONE_DEG` of its centre's direction (at least
+    (N,) bool, the splats that make surfaces (:func:`surface_splats`, emitters left
+    out). From ``viewpoint`` (3,), a cluster's surface is the median distance of the
+    surface splats within :data:`SURFACE_CONE_DEG` of its centre's direction (at least
     :data:`SURFACE_MIN_SPLATS` of them); a cluster whose centre lies farther than that
     plus its own radial spread is scaled along the rays onto it. Returns the moved
     positions (N, 3; only the sunk clusters' rows change) and (K,) bool, which moved.
@@ -348,8 +348,8 @@ def onto_surfaces(positions: np.ndarray, clusters: list[np.ndarray], viewpoint: 
 
 
 def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.ndarray,
-           power: np.ndarray, viewpoint: np.ndarray, gap: float
-           ) -> tuple[np.ndarray, np.ndarray]:
+                   power: np.ndarray, viewpoint: np.ndarray, gap: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Light label (K,) of each emitter cluster and the distance (K,) each is seen at.
 
     Clusters are linked when their reaches (spread plus ``gap``) touch, or when their
