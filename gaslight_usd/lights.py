@@ -22,11 +22,28 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    albedo rho under irradiance E has radiance rho E / pi, so no surface of
    albedo <= RHO_MAX lit by this scene can be brighter. The cluster's own
    splats, and dimmer splats around it (the surface it lies on only hides the
-   light that lights it), are left out of ``E_max``. Light from sources brighter
-   than the photos' white (and than the cluster) was predicted, not measured,
-   so it counts ``2 ** power_uncertainty_stops`` times (it may be that much
-   brighter): a wall lit by an underestimated lamp is still explained by it.
-4. Emitter clusters closer than their own sizes plus :data:`GROUP_SHARE` of
+   light that lights it), are left out of ``E_max``. Sources brighter than the
+   photos' white (and than the cluster) were clipped in the photos, so their
+   fitted radiance is a *lower bound* unless brackets measured it: each counts
+   as bright as :data:`BRIGHTEST_LIGHT_STOPS` above white, but at least
+   ``2 ** power_uncertainty_stops`` and at most ``2 ** headroom`` times its fit
+   (:func:`clipped_gain`; the headroom is :data:`CLIPPED_HEADROOM_STOPS` for
+   predicted or inferred power). A wall lit by a lamp the uplift left short is
+   still explained by that lamp, while a lamp fitted far above white (its fill
+   not short) does not explain a window as bright as a tenth of it.
+4. **Sunk emitters are moved onto the surface they are seen through.** A flat,
+   featureless light fits at any depth along the rays that see it, so a fit
+   leaves some of its splats behind the wall or ceiling it is set in. Seen from
+   the captured space's viewpoint, a cluster farther than the median distance
+   of the opaque splats no brighter than :data:`SURFACE_STOPS` above white (and
+   not emitters) within :data:`SURFACE_CONE_DEG` of its direction
+   (plus its own size) is placed onto that surface along the rays and tested
+   again there (:func:`onto_surfaces`; a patch of ceiling sunk over a lamp is
+   nearer the lamp on it; the splats themselves are not moved), and clusters
+   whose outlines overlap as seen from there, within :data:`SMEAR_DEG`, are
+   one light smeared in depth, each part placed at the nearest strong part's
+   distance (:data:`SMEAR_POWER_SHARE`, :func:`group_clusters`).
+5. Emitter clusters closer than their own sizes plus :data:`GROUP_SHARE` of
    the captured space's median depth are **grouped into lights**:
    position (power-weighted centre), size (principal half-extents), power
    (radiance x projected area, summed), colour, and where the power came from.
@@ -47,7 +64,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .capture import CaptureSpace, backdrop_mask, capture_space
+from .capture import OPAQUE, CaptureSpace, backdrop_mask, capture_space
 from .splats import SplatScene
 from .surroundings import look_from, normals_26, splat_sigma
 
@@ -67,6 +84,50 @@ POWER_UNCERTAINTY_STOPS = {"measured": 0.25, "predicted": 3.0, "inferred": 4.0}
 before its shrink is about 2 stops (README), and on the example the ``fast`` fit's lamp
 lights the ceiling as a lamp about 3 stops brighter would; a clipped photo taken as is
 only gives a lower bound."""
+CLIPPED_HEADROOM_STOPS = 7.0
+"""How much brighter than its fitted radiance a clipped source may be when it explains a
+surface it lights (power not measured by brackets). The photos clipped it, so what they
+give is a lower bound, and the uplift's fill is a guess that falls short: a lit wall that
+such a source could explain were it this much brighter is not an emitter. The shortfall
+is what ``gaslight2usd bench --suite chain`` reports per light (``power_err_<light>``,
+recursive and clipped-photos rows, docs/measurements.md); the headroom covers the
+largest there. It only lets sources brighter than the tested cluster explain it, so a
+true emitter brighter than everything around it stays one; what it costs (an emitter
+dimmer than a nearby clipped light it faces can be taken for a lit surface) is measured
+by ``tests/test_lights.py`` and the panels/example check in docs/measurements.md."""
+BRIGHTEST_LIGHT_STOPS = 9.0
+"""How far above the photos' white a clipped light plausibly lies: a set is exposed for
+its walls (their median near a fifth of white), and a bare bulb, the brightest light a set
+holds, is some thousand times its walls. A clipped source counts as this bright when it
+explains a lit surface, within
+:data:`CLIPPED_HEADROOM_STOPS` of its fit: the fit of a source already far above white
+was not left short, and is not raised further (:func:`clipped_gain`)."""
+SURFACE_CONE_DEG = 8.0
+"""Half-angle of the cone round an emitter's direction (from the captured space's
+viewpoint) whose opaque non-emitting splats give the surface it is seen through: their
+median distance, robust to the fit's depth smear of that surface. About two direction
+bins of :mod:`gaslight_usd.surroundings` across: a ``fast`` fit's ceiling is sparse where
+a lamp lights it (``gaslight2usd run examples/room/photos``: the patch sunk over the
+lamp finds too few splats in one bin's cone)."""
+SURFACE_STOPS = 1.0
+"""Splats at most this many stops above the photos' white can be the surface a light is
+seen through: a lit ceiling over a lamp is a little above white (the set is exposed for
+its walls), while a flat light's own depth-smeared copies lie far above it and are no
+surface (``gaslight2usd run`` on a ``make_room.py --variant bulb`` room: a ``fast`` fit
+leaves a window-coloured sheet well in front of the window)."""
+SURFACE_MIN_SPLATS = 5
+"""Fewer surface splats in the cone than this: no surface there, the cluster stays."""
+SMEAR_DEG = 2.0
+"""Emitter clusters whose directions from the viewpoint are closer than their angular
+radii plus this are one light smeared along the viewing rays: the photos see them
+through the same pixels, so they cannot tell their depths apart (a ceiling panel fitted
+partly above the ceiling: ``gaslight2usd run`` on the chain bench's ``panels`` photos
+without poses, docs/measurements.md)."""
+SMEAR_POWER_SHARE = 0.25
+"""A light smeared along the rays is placed at its nearest part holding at least this
+share of a farther part's power: the photos put a light on the first surface along the
+ray, but a lone floater the fit left in front of a window does not carry the window
+forward (``make_room.py --variant bulb`` photos, ``gaslight2usd run``)."""
 GROUP_SHARE = 0.15
 """Emitter clusters closer than this share of the captured space's median depth (plus
 their own sizes) are one light (a window fitted as many patches)."""
@@ -140,9 +201,15 @@ class LightSearch:
         return {
             "rule": ("emitter: cluster of splats above the photos' white whose mean radiance "
                      f"exceeds {RHO_MAX} x E_max / pi, E_max the largest irradiance the rest "
-                     "of the scene sends it (sources above white x 2^uncertainty)"),
+                     "of the scene sends it (clipped sources, those above white, count as "
+                     f"{BRIGHTEST_LIGHT_STOPS:g} stops above white, within "
+                     f"2^{POWER_UNCERTAINTY_STOPS[self.power_source]:g}-"
+                     f"2^{explain_headroom_stops(self.power_source):g} x their fit: "
+                     "their fitted power is a lower bound)"),
             "white": self.white,
             "rho_max": RHO_MAX,
+            "clipped_headroom_stops": explain_headroom_stops(self.power_source),
+            "brightest_light_stops": BRIGHTEST_LIGHT_STOPS,
             "captured_space": self.space.source,
             "power_source": self.power_source,
             **self.counts,
@@ -160,6 +227,30 @@ def power_source(metadata: Mapping[str, Any]) -> str:
     if "recursive" in method or "diffusion" in method or "predict" in method:
         return "predicted"
     return "inferred"
+
+
+def explain_headroom_stops(source: str) -> float:
+    """Stops a clipped source may be brighter when it explains a lit surface (step 3).
+
+    Merged brackets measured the lights: their quarter-stop uncertainty. Otherwise the
+    fitted radiance is a lower bound: at least :data:`CLIPPED_HEADROOM_STOPS`.
+    """
+    stops = POWER_UNCERTAINTY_STOPS[source]
+    return stops if source == "measured" else max(stops, CLIPPED_HEADROOM_STOPS)
+
+
+def clipped_gain(radiance: np.ndarray, white: float, source: str) -> np.ndarray:
+    """(N,) factor by which clipped sources of fitted ``radiance`` (N,) may be brighter.
+
+    Between ``2 ** POWER_UNCERTAINTY_STOPS[source]`` and ``2 ** headroom``
+    (:func:`explain_headroom_stops`), aiming at :data:`BRIGHTEST_LIGHT_STOPS` above
+    ``white``: a source the fit left near white may be far brighter, one it put far
+    above white only by its stated uncertainty.
+    """
+    low = 2.0 ** POWER_UNCERTAINTY_STOPS[source]
+    high = max(2.0 ** explain_headroom_stops(source), low)
+    aim = white * 2.0**BRIGHTEST_LIGHT_STOPS / np.maximum(np.asarray(radiance, np.float64), 1e-30)
+    return np.clip(aim, low, high)
 
 
 def white_level(metadata: Mapping[str, Any]) -> float:
@@ -193,8 +284,8 @@ def _max_irradiance(scene: SplatScene, sources: np.ndarray, point: np.ndarray,
 
 
 def _light(scene: SplatScene, idx: np.ndarray, area: np.ndarray, colours: np.ndarray,
-           source: str) -> Light:
-    pos = scene.positions[idx].astype(np.float64)
+           source: str, positions: np.ndarray | None = None) -> Light:
+    pos = (scene.positions if positions is None else positions)[idx].astype(np.float64)
     power_rgb = (colours[idx] * area[idx, None]).sum(0)
     w = (colours[idx].max(1) * area[idx]) + 1e-30
     centre = (pos * w[:, None]).sum(0) / w.sum()
@@ -210,13 +301,88 @@ def _light(scene: SplatScene, idx: np.ndarray, area: np.ndarray, colours: np.nda
                  power_source=source, power_uncertainty_stops=POWER_UNCERTAINTY_STOPS[source])
 
 
+def surface_splats(radiance: np.ndarray, opacity: np.ndarray, backdrop: np.ndarray,
+                   white: float) -> np.ndarray:
+    """(N,) splats that can be the surface a light is seen through: opaque (above the
+    captured space's ``OPAQUE``), not ``backdrop``, at most :data:`SURFACE_STOPS` above
+    ``white`` (``radiance`` (N,) the splats' largest channel)."""
+    return (~np.asarray(backdrop, bool) & (np.asarray(opacity) > OPAQUE)
+            & (np.asarray(radiance) <= white * 2.0**SURFACE_STOPS))
+
+
+def onto_surfaces(positions: np.ndarray, clusters: list[np.ndarray], viewpoint: np.ndarray,
+                  surface: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Emitter clusters sunk behind the surface they are seen through, moved onto it.
+
+    ``positions`` (N, 3) all splats; ``clusters`` index arrays into them; ``surface``
+    (N,) bool, the splats that make surfaces (:func:`surface_splats`, emitters left
+    out). From ``viewpoint`` (3,), a cluster's surface is the median distance of the
+    surface splats within :data:`SURFACE_CONE_DEG` of its centre's direction (at least
+    :data:`SURFACE_MIN_SPLATS` of them); a cluster whose centre lies farther than that
+    plus its own radial spread is scaled along the rays onto it. Returns the moved
+    positions (N, 3; only the sunk clusters' rows change) and (K,) bool, which moved.
+    """
+    out = np.asarray(positions, np.float64).copy()
+    sunk = np.zeros(len(clusters), bool)
+    if not clusters or not surface.any():
+        return out, sunk
+    vp = np.asarray(viewpoint, np.float64).reshape(3)
+    d = out[surface] - vp
+    r = np.linalg.norm(d, axis=1)
+    keep = r > 1e-9
+    u, r = d[keep] / r[keep, None], r[keep]
+    centres = np.array([out[i].mean(0) for i in clusters]) - vp
+    dist = np.linalg.norm(centres, axis=1)
+    dirs = centres / np.maximum(dist, 1e-30)[:, None]
+    inside = dirs @ u.T > np.cos(np.radians(SURFACE_CONE_DEG))  # (K, M)
+    count = inside.sum(1)
+    ranked = np.sort(np.where(inside, r[None], np.inf), axis=1)  # members first, by distance
+    lo = np.take_along_axis(ranked, np.maximum(count - 1, 0)[:, None] // 2, axis=1)[:, 0]
+    hi = np.take_along_axis(ranked, np.minimum(count // 2, len(r) - 1)[:, None], axis=1)[:, 0]
+    depth = np.where(count > 0, 0.5 * (lo + hi), np.inf)  # the members' median distance
+    spread = np.array([np.linalg.norm(out[i] - vp, axis=1).std() for i in clusters])
+    sunk = (count >= SURFACE_MIN_SPLATS) & (dist > depth + spread)
+    for k in np.flatnonzero(sunk):
+        out[clusters[k]] = vp + (out[clusters[k]] - vp) * (depth[k] / dist[k])
+    return out, sunk
+
+
+def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.ndarray,
+                   power: np.ndarray, viewpoint: np.ndarray, gap: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Light label (K,) of each emitter cluster and the distance (K,) each is seen at.
+
+    Clusters are linked when their reaches (spread plus ``gap``) touch, or when their
+    outlines (splats' spread plus footprints ``sigma`` (N,)) overlap within
+    :data:`SMEAR_DEG` as seen from ``viewpoint`` (one light smeared along the rays): a
+    cluster lying behind such one by more than its own reach, one holding at least
+    :data:`SMEAR_POWER_SHARE` of its ``power`` (K,), is seen at the nearest such one's
+    distance.
+    """
+    centres = np.array([positions[i].mean(0) for i in clusters])
+    reach = np.array([(np.linalg.norm(positions[i] - c, axis=1) + LINK_SIGMAS * sigma[i]).max()
+                      for i, c in zip(clusters, centres, strict=True)])
+    rel = centres - np.asarray(viewpoint, np.float64).reshape(3)
+    dist = np.maximum(np.linalg.norm(rel, axis=1), 1e-30)
+    dirs = rel / dist[:, None]
+    ang = np.arctan2(reach, dist)  # angular radius as seen from the viewpoint
+    between = np.arccos(np.clip(dirs @ dirs.T, -1.0, 1.0))
+    near = np.linalg.norm(centres[:, None] - centres[None], axis=2) <= (
+        reach[:, None] + reach[None] + 2.0 * gap)
+    smear = between <= ang[:, None] + ang[None] + np.radians(SMEAR_DEG)
+    behind = smear & (dist[None] < dist[:, None] - reach[:, None]) & (
+        power[None] >= SMEAR_POWER_SHARE * power[:, None])
+    seen_at = np.where(behind, dist[None], dist[:, None]).min(axis=1)
+    return connected_components(coo_matrix(near | smear), directed=False)[1], seen_at
+
+
 def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                   source: str | None = None) -> LightSearch:
     """Find the lights of ``scene`` (module docstring) and say how."""
     space = space or capture_space(scene)
     source = source or power_source(scene.metadata)
     white = white_level(scene.metadata)
-    uncertainty = POWER_UNCERTAINTY_STOPS[source]
+    headroom = explain_headroom_stops(source)
     colours = scene.base_colours.astype(np.float64)
     radiance = colours.max(axis=1)
     sigma = splat_sigma(scene)
@@ -238,45 +404,71 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     level_of = power / np.maximum(areas, 1e-30)
     order = np.argsort(-level_of)
     order = order[power[order] >= MIN_POWER_SHARE * power.max()][:MAX_CLUSTERS]
-    boost = 2.0**uncertainty
     not_backdrop = ~backdrop
+    headroom_gain = clipped_gain(radiance, white, source)
     emitting: list[np.ndarray] = []
     tests: list[dict[str, float]] = []
-    for c in order:
-        idx = candidates[labels == c]
+    positions = scene.positions.astype(np.float64)
+
+    def emitter_test(idx: np.ndarray, at: np.ndarray) -> dict[str, float] | None:
+        """The step-3 test of cluster ``idx`` with its splats at ``at`` (K, 3)."""
         a = area[idx]
         level = float((radiance[idx] * a).sum() / max(a.sum(), 1e-30))
         w = radiance[idx] * a + 1e-30
-        centre = (scene.positions[idx] * w[:, None]).sum(0) / w.sum()
-        size = float(np.sqrt((w * ((scene.positions[idx] - centre) ** 2).sum(1)).sum()
-                             / w.sum())) + float(np.median(LINK_SIGMAS * sigma[idx]))
-        near = np.linalg.norm(scene.positions - centre, axis=1) <= size
+        centre = (at * w[:, None]).sum(0) / w.sum()
+        size = float(np.sqrt((w * ((at - centre) ** 2).sum(1)).sum() / w.sum())) + \
+            float(np.median(LINK_SIGMAS * sigma[idx]))
+        near = np.linalg.norm(positions - centre, axis=1) <= size
         sources = not_backdrop & ~(near & (radiance <= level))
         sources[idx] = False
         # only sources brighter than the cluster may be that much brighter: its peers
-        # (the rest of the same lamp) do not explain it by their own uncertainty
-        gain = np.where(radiance > max(white, level), boost, 1.0)
+        # (the rest of the same lamp) do not explain it by their own shortfall
+        gain = np.where(radiance > max(white, level), headroom_gain, 1.0)
         e_max = _max_irradiance(scene, sources, centre, colours * gain[:, None], sigma)
         limit = RHO_MAX * e_max / np.pi
-        if level > limit:
+        if level <= limit:
+            return None
+        return {"mean_radiance": level, "irradiance_max": e_max, "diffuse_limit": limit,
+                "headroom_stops": headroom}
+
+    for c in order:
+        idx = candidates[labels == c]
+        test = emitter_test(idx, positions[idx])
+        if test is not None:
             emitting.append(idx)
-            tests.append({"mean_radiance": level, "irradiance_max": e_max,
-                          "diffuse_limit": limit})
+            tests.append(test)
     counts.update(clusters=n_clusters, clusters_tested=int(len(order)))
     if not emitting:
         return LightSearch([], emitters, backdrop, space, white, source,
                            {**counts, "emitters": 0})
-    # Group emitter clusters that lie within each other's reach into lights.
-    centres = np.array([scene.positions[i].astype(np.float64).mean(0) for i in emitting])
-    gap = GROUP_SHARE * space.median_depth() / 2.0
-    reach = np.array([np.linalg.norm(scene.positions[i] - c, axis=1).max() + gap
-                      for i, c in zip(emitting, centres, strict=True)])
-    groups = _components(centres, reach)
+    # Sunk clusters onto the surface they are seen through; then group into lights the
+    # clusters within each other's reach or overlapping along the viewing rays, each
+    # group at its nearest member's distance from the viewpoint.
+    viewpoint = space.viewpoints.mean(0)
+    surface = surface_splats(radiance, opacity, backdrop, white)
+    surface[np.concatenate(emitting)] = False
+    placed, sunk = onto_surfaces(positions, emitting, viewpoint, surface)
+    # a sunk cluster is tested again where it belongs: on the surface, a patch of ceiling
+    # over a lamp is nearer the lamp than the fit put it, and may be lit by it
+    retest = {int(k): emitter_test(emitting[k], placed[emitting[k]]) for k in np.flatnonzero(sunk)}
+    keep = [k for k in range(len(emitting)) if retest.get(k, tests[k]) is not None]
+    counts.update(sunk_moved=int(sunk.sum()), sunk_lit_surfaces=len(emitting) - len(keep))
+    emitting, tests = [emitting[k] for k in keep], [retest.get(k) or tests[k] for k in keep]
+    if not emitting:
+        return LightSearch([], emitters, backdrop, space, white, source,
+                           {**counts, "emitters": 0})
+    cluster_power = np.array([(radiance[i] * area[i]).sum() for i in emitting])
+    groups, seen_at = group_clusters(placed, emitting, sigma, cluster_power, viewpoint,
+                             GROUP_SHARE * space.median_depth() / 2.0)
+    for k, idx in enumerate(emitting):
+        dist = float(np.linalg.norm(placed[idx].mean(0) - viewpoint))
+        if seen_at[k] < dist:
+            placed[idx] = viewpoint + (placed[idx] - viewpoint) * (seen_at[k] / dist)
     lights = []
     for g in range(int(groups.max()) + 1):
         members = [k for k in range(len(emitting)) if groups[k] == g]
         idx = np.concatenate([emitting[k] for k in members])
-        light = _light(scene, idx, area, colours, source)
+        light = _light(scene, idx, area, colours, source, placed)
         first = max(members, key=lambda k: tests[k]["mean_radiance"])
         light.test = tests[first]
         lights.append(light)
