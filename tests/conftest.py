@@ -18,6 +18,10 @@ TEST_HDRI = REPO / "tests" / "data" / "hdri"
 """Eight CC0 panoramas, 256x128 half-float EXR, made from the shared set by
 tests/data/make_test_hdris.py (see tests/data/README.md). Tests read these, never
 ../shared/data, so they run the same on every clone."""
+EXAMPLE = REPO / "examples" / "room"
+"""The bundled example (photos, true HDR views, true poses, probes)."""
+needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
+                                   reason="the bundled example examples/room is missing")
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:

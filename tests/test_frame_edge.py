@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import EXAMPLE, needs_example
 
 from gaslight_usd.bench.perturb import CROP_WIDTH, edge_crop
 from gaslight_usd.colour import luminance_weights
@@ -30,10 +31,6 @@ from gaslight_usd.imageio import read_image
 from gaslight_usd.poses import read_poses
 from gaslight_usd.resize import area_resize, fit_within
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "room"
-needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
-                                   reason="the bundled example examples/room is missing")
 Y = luminance_weights("lin_rec709")
 
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import EXAMPLE, needs_example
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.poses import read_poses
@@ -23,11 +23,6 @@ from gaslight_usd.poses.agreement import (
     reprojection_agreement,
 )
 from gaslight_usd.poses.colmap import ColmapModel, read_model, write_model
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "room"
-needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
-                                   reason="the bundled example examples/room is missing")
 
 
 def turned(cam: PinholeCamera, degrees: float, axis=(0.3, 1.0, -0.2)) -> PinholeCamera:
