@@ -13,8 +13,9 @@ import numpy as np
 from gaslight_usd.errors import InputError
 from gaslight_usd.export_options import HdriOptions
 from gaslight_usd.kinds import Kind
+from gaslight_usd.lights import find_lights
 from gaslight_usd.ply import read_ply
-from gaslight_usd.probe_check import outside_warning
+from gaslight_usd.probe_check import near_light_warning, outside_warning
 from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
 
 
@@ -54,9 +55,11 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
     if out_space:
         out_space = colour.resolve_space(out_space, s.ocio_config)
     written, warnings = [], []
-    for pos in points if o.at else []:
-        warning = outside_warning(pos, scene.positions)
-        if warning:
+    lights = find_lights(scene)
+    for pos in points:
+        found = [outside_warning(pos, scene.positions) if o.at else None,
+                 near_light_warning(pos, lights)]
+        for warning in filter(None, found):
             warnings.append(warning)
             ctx.progress.message(f"warning: {warning}")
     for i, ((pos, how), path) in enumerate(zip(choices, paths, strict=True), start=1):

@@ -11,6 +11,8 @@ emitters; the lights finder must not.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -282,3 +284,33 @@ def test_a_light_smeared_along_the_rays_sits_at_its_nearest_strong_part():
     labels, seen_at = lights.group_clusters(pos, clusters, sigma, power, np.zeros(3), 0.05)
     assert len(set(labels.tolist())) == 1
     np.testing.assert_allclose(seen_at, [2.0, 3.0, 3.0], atol=0.01)
+
+
+def test_a_probe_within_a_lights_reach_is_warned_about(tmp_path, capsys):
+    """0.4 m in front of the window (under one of its radii) the HDRI is not to be trusted:
+    a fit leaves a flat light's splats floating there (issue 16); the room's middle and a
+    point 0.4 m from the small lamp (many of its radii) are fine."""
+    from gaslight_usd.cli.main import main
+    from gaslight_usd.ply import write_ply
+    from gaslight_usd.probe_check import NEAR_LIGHT_RADII, near_light_warning
+
+    scene, _ = room_scene()
+    lights = find_lights(scene)
+    window = WINDOW - np.array([0.4, 0.0, 0.0])
+    text = near_light_warning(window, lights)
+    assert text is not None and text.startswith("probe point 2.09,1.6,0.2 lies 0.")
+    assert "radii from a light (centre 2.5, 1.56, 0.183, radius 0.582)" in text
+    assert near_light_warning([0.0, 1.5, 0.0], lights) is None
+    assert near_light_warning(LAMP + [0.4, 0.0, 0.0], lights) is None
+    lamp = min(lights, key=lambda light: light.radius)
+    edge = lamp.position + [0.99 * NEAR_LIGHT_RADII * lamp.radius, 0.0, 0.0]
+    assert near_light_warning(edge, lights) is not None
+    ply = write_ply(tmp_path / "room.ply", scene)
+    assert main(["hdri", str(ply), "--at", "2.09,1.6,0.2", "-o", str(tmp_path / "w.exr"),
+                 "--size", "16", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "warning: probe point 2.09,1.6,0.2 lies 0." in captured.err
+    assert json.loads(captured.out)["warnings"] == [text]
+    assert main(["hdri", str(ply), "--at", "0,1.5,0", "-o", str(tmp_path / "m.exr"),
+                 "--size", "16"]) == 0
+    assert "warning" not in capsys.readouterr().err
