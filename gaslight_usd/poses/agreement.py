@@ -40,6 +40,11 @@ MIN_MEASURES = 20
 """A photo is judged alone only on at least this many measurements."""
 MIN_PAIR_INLIERS = 15
 """Verified pairs with fewer inlier matches are not used (as SfM's ``MIN_INLIERS``)."""
+MIN_BAD_PAIRS = 2
+"""With matches, a photo is named only when at least this many of its pairs, and most of
+them, disagree (pair median over :data:`OUTLIER_DEG`): a wrong pose moves every pair it
+is in, while one pair whose verification kept wrong matches (dark, noisy photos: the
+stability sweep's ``no_clip`` named a true pose at 55 px from one such pair) does not."""
 
 
 @dataclass
@@ -54,6 +59,8 @@ class PoseAgreement:
     median_deg: float
     per_image: dict[str, tuple[float, float, int]] = field(default_factory=dict)
     """Image name -> (median px, median deg, measurements) over what involves it."""
+    pair_votes: dict[str, tuple[int, int]] = field(default_factory=dict)
+    """Epipolar only: image name -> (its pairs that disagree, its pairs)."""
 
     @property
     def disagrees(self) -> bool:
@@ -62,8 +69,15 @@ class PoseAgreement:
     def outliers(self) -> list[str]:
         """Photos whose own median is over :data:`OUTLIER_DEG`, worst first."""
         bad = [(deg, name) for name, (_, deg, n) in self.per_image.items()
-               if n >= MIN_MEASURES and deg > OUTLIER_DEG]
+               if n >= MIN_MEASURES and deg > OUTLIER_DEG and self._pairs_agree_bad(name)]
         return [name for _, name in sorted(bad, reverse=True)]
+
+    def _pairs_agree_bad(self, name: str) -> bool:
+        """Whether ``name``'s pairs say its pose is off (always, without pairs)."""
+        if name not in self.pair_votes:
+            return True
+        bad, total = self.pair_votes[name]
+        return bad >= MIN_BAD_PAIRS and 2 * bad > total
 
     def worst(self, count: int = 5) -> list[str]:
         """The ``count`` photos of largest median error."""
@@ -228,7 +242,24 @@ def epipolar_agreement(model: ColmapModel, keypoints: dict[str, np.ndarray],
     owners = [np.flatnonzero((pair_index[pair_of_match, 0] == i)
                              | (pair_index[pair_of_match, 1] == i))
               for i in range(len(cams))]
-    return _summarise("epipolar", errors, px, owners, model.names)
+    agreement = _summarise("epipolar", errors, px, owners, model.names)
+    if agreement is not None:
+        agreement.pair_votes = _pair_votes(errors, pair_of_match, pair_index, model.names)
+    return agreement
+
+
+def _pair_votes(errors: np.ndarray, pair_of_match: np.ndarray, pair_index: np.ndarray,
+                names: list[str]) -> dict[str, tuple[int, int]]:
+    """Per image: (its pairs whose median error exceeds :data:`OUTLIER_DEG`, its pairs)."""
+    order = np.lexsort((errors, pair_of_match))  # by pair, then by error
+    used, start, count = np.unique(pair_of_match[order], return_index=True,
+                                   return_counts=True)
+    ranked = errors[order]
+    medians = 0.5 * (ranked[start + (count - 1) // 2] + ranked[start + count // 2])
+    bad = np.degrees(medians) > OUTLIER_DEG
+    ends = pair_index[used]
+    return {name: (int(bad[(ends == i).any(axis=1)].sum()), int((ends == i).any(axis=1).sum()))
+            for i, name in enumerate(names) if (ends == i).any()}
 
 
 def pose_agreement(model: ColmapModel) -> PoseAgreement | None:
