@@ -21,12 +21,11 @@ import numpy as np
 CENTRAL_SHARE = 0.96
 FAR_FRACTION = 0.25
 NEAR_LIGHT_RADII = 1.5
-"""A probe closer than this many of a light's radii to its centre is warned about. On a
-room never tuned on (``gaslight2usd bench --suite chain --scene panels``) the probe 0.5 m
-from the window lies 0.7 radii from the fitted window and its irradiance is far off even
-from true HDR views (docs/measurements.md), while probes 2.7 radii and more from every
-light fare far better; the bundled example's probes lie 5.6 radii or more from its
-lights."""
+"""A probe closer than this many of a light's radii to its centre is warned about: on a
+room never tuned on, the chain bench's probe by the window lies inside this reach of the
+fitted window and its irradiance is far off even from true HDR views, while its probes
+further out and the bundled example's (all well outside it) are not (``gaslight2usd bench
+--suite chain --scene panels``; figures in docs/measurements.md)."""
 
 
 def splat_box(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
