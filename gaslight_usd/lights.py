@@ -459,7 +459,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                            {**counts, "emitters": 0})
     cluster_power = np.array([(radiance[i] * area[i]).sum() for i in emitting])
     groups, seen_at = group_clusters(placed, emitting, sigma, cluster_power, viewpoint,
-                             GROUP_SHARE * space.median_depth() / 2.0)
+                                     GROUP_SHARE * space.median_depth() / 2.0)
     for k, idx in enumerate(emitting):
         dist = float(np.linalg.norm(placed[idx].mean(0) - viewpoint))
         if seen_at[k] < dist:
