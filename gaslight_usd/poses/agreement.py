@@ -43,8 +43,12 @@ MIN_PAIR_INLIERS = 15
 MIN_BAD_PAIRS = 2
 """With matches, a photo is named only when at least this many of its pairs, and most of
 them, disagree (pair median over :data:`OUTLIER_DEG`): a wrong pose moves every pair it
-is in, while one pair whose verification kept wrong matches (dark, noisy photos: the
-stability sweep's ``no_clip`` named a true pose at 55 px from one such pair) does not."""
+is in, while a pair whose verification kept wrong matches does not say much."""
+MIN_VOTE_INLIERS = 30
+"""Only pairs with at least this many verified matches vote on a photo's pose: a pair
+verified on barely :data:`MIN_PAIR_INLIERS` matches in a dark, featureless photo can be
+wrong as a whole (``gaslight2usd bench --suite stability``, the ``no_clip`` case: a true
+pose of a floor view named from its three such pairs)."""
 
 
 @dataclass
@@ -60,7 +64,7 @@ class PoseAgreement:
     per_image: dict[str, tuple[float, float, int]] = field(default_factory=dict)
     """Image name -> (median px, median deg, measurements) over what involves it."""
     pair_votes: dict[str, tuple[int, int]] = field(default_factory=dict)
-    """Epipolar only: image name -> (its pairs that disagree, its pairs)."""
+    """Epipolar only: image name -> (its voting pairs that disagree, its voting pairs)."""
 
     @property
     def disagrees(self) -> bool:
@@ -250,16 +254,19 @@ def epipolar_agreement(model: ColmapModel, keypoints: dict[str, np.ndarray],
 
 def _pair_votes(errors: np.ndarray, pair_of_match: np.ndarray, pair_index: np.ndarray,
                 names: list[str]) -> dict[str, tuple[int, int]]:
-    """Per image: (its pairs whose median error exceeds :data:`OUTLIER_DEG`, its pairs)."""
+    """Per image: (its voting pairs whose median error exceeds :data:`OUTLIER_DEG`, its
+    voting pairs); pairs with fewer than :data:`MIN_VOTE_INLIERS` matches do not vote."""
     order = np.lexsort((errors, pair_of_match))  # by pair, then by error
     used, start, count = np.unique(pair_of_match[order], return_index=True,
                                    return_counts=True)
     ranked = errors[order]
     medians = 0.5 * (ranked[start + (count - 1) // 2] + ranked[start + count // 2])
+    voting = count >= MIN_VOTE_INLIERS
+    used, medians = used[voting], medians[voting]
     bad = np.degrees(medians) > OUTLIER_DEG
     ends = pair_index[used]
     return {name: (int(bad[(ends == i).any(axis=1)].sum()), int((ends == i).any(axis=1).sum()))
-            for i, name in enumerate(names) if (ends == i).any()}
+            for i, name in enumerate(names)}
 
 
 def pose_agreement(model: ColmapModel) -> PoseAgreement | None:
