@@ -47,6 +47,14 @@ class FitOptions:
     report's metadata."""
 
 
+HELD_OUT_WARN_STOPS = 2.0
+"""Held-out log-luminance RMSE (stops) above which the fit says the photos do not cover the
+set: a fit whose photos overlap scores well under 1 on the views it never saw, while the
+stability sweep's 8-photo capture at ``balanced`` missed its held-out view by over 4 stops
+and lost a stop of light with no other warning (``gaslight2usd bench --suite stability
+--preset balanced --perturb photos``)."""
+
+
 def checkpoint_path(output: Path) -> Path:
     """Where the fit of ``output`` keeps its checkpoint (a hidden sibling)."""
     return output.with_name(f".{output.name}.fit-checkpoint.pt")
@@ -121,6 +129,15 @@ def fit(ctx: StageContext) -> StageResult:
             f"warning: only {len(data.names)} views, none held out: the fit could not tell "
             "when more splats stopped helping, and its errors (and --tolerance-stops) are "
             "measured on the views it was fitted to; shoot more photos")
+    held_err = result.metrics.get("held_out_log_lum_rmse_stops")
+    if result.metrics["held_out_views"] and held_err is not None and \
+            held_err > HELD_OUT_WARN_STOPS:
+        ctx.progress.message(
+            f"warning: the fit misses the view(s) it never trained on "
+            f"({', '.join(result.metrics['held_out_views'])}) by {held_err:.1f} stops "
+            f"(log-luminance RMSE; over {HELD_OUT_WARN_STOPS:g} means the photos do not cover "
+            "the set): what lies between the photos, lights included, is a guess; shoot more "
+            "photos, each overlapping its neighbours")
     for light in result.metrics.get("single_view_lights") or []:
         where = ", ".join(f"{v:.2f}" for v in light["position"])
         framed = (f"is framed by {light['view']} alone" if light["view"]

@@ -357,3 +357,25 @@ def test_a_light_framed_by_one_camera_is_named():
     assert [light.view for light in found] == ["view_00.jpg"]
     assert found[0].share == pytest.approx(50 / 150)
     np.testing.assert_allclose(found[0].position, near_first[0])
+
+
+def test_a_fit_that_misses_its_held_out_view_says_the_photos_do_not_cover_the_set(
+        tmp_path, capsys):
+    """The held-out view (view_04) made 32x brighter than the set it shows: the fit, true to
+    the other eight, misses it by about 5 stops and says so; the same views as rendered do
+    not warn."""
+    from converters.fit_splats import HELD_OUT_WARN_STOPS
+    from gaslight_usd.imageio import read_image
+
+    write_posed_views(tmp_path, with_points=True)
+    args = ["--poses", str(tmp_path / "sparse"), "--iterations", "24", "--budget", "1500"]
+    assert main(["fit", str(tmp_path / "hdr"), "-o", str(tmp_path / "a.ply"), *args]) == 0
+    assert "misses the view" not in capsys.readouterr().err
+    view = tmp_path / "hdr" / "view_04.exr"
+    write_exr(view, read_image(view).pixels * 32.0, "lin_rec709",
+              {"gaslight:exposure_scale": 1.0}, half=False)
+    assert main(["fit", str(tmp_path / "hdr"), "-o", str(tmp_path / "b.ply"), *args]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the fit misses the view(s) it never trained on (view_04) by " in err
+    m = read_ply(tmp_path / "b.ply").metadata["fit_metrics"]
+    assert m["held_out_log_lum_rmse_stops"] > HELD_OUT_WARN_STOPS
