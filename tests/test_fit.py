@@ -364,7 +364,8 @@ def test_a_fit_that_misses_its_held_out_view_says_the_photos_do_not_cover_the_se
     """The held-out view (view_04) made 32x brighter than the set it shows: the fit, true to
     the other eight, misses it by about 5 stops and says so; the same views as rendered do
     not warn."""
-    from converters.fit_splats import HELD_OUT_WARN_STOPS
+    from gaslight_usd.converters.fit_splats import HELD_OUT_WARN_STOPS
+
     from gaslight_usd.imageio import read_image
 
     write_posed_views(tmp_path, with_points=True)
