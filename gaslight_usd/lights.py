@@ -47,6 +47,12 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    the captured space's median depth are **grouped into lights**:
    position (power-weighted centre), size (principal half-extents), power
    (radiance x projected area, summed), colour, and where the power came from.
+6. **The photos have the last word** when the fit recorded where they saw light over
+   the white (:mod:`gaslight_usd.sightings`, the splats' ``light_sightings``): a light
+   less than :data:`SEEN_SHARE` of whose power lies where some photo saw light is not
+   a light (a bright patch the fit made where every photo saw a plain wall), and a
+   light two photos frame whole from far enough apart is moved, as a whole, to where
+   its outlines' rays meet (a flat light's depth is what its splats cannot fix).
 
 ``gaslight2usd bench --suite usd`` times the export that runs this;
 ``tests/test_lights.py`` checks it on a room with a lamp, a window, lit walls
@@ -65,6 +71,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .capture import OPAQUE, CaptureSpace, backdrop_mask, capture_space
+from .sightings import Sightings
 from .splats import SplatScene
 from .surroundings import look_from, normals_26, splat_sigma
 
@@ -128,6 +135,12 @@ SMEAR_POWER_SHARE = 0.25
 share of a farther part's power: the photos put a light on the first surface along the
 ray, but a lone floater the fit left in front of a window does not carry the window
 forward (``make_room.py --variant bulb`` photos, ``gaslight2usd run``)."""
+SEEN_SHARE = 0.25
+"""A light needs at least this share of its power where a photo saw light over the
+white (step 6): the fit's depth smear keeps a true light's splats inside the cones of the
+views that see it (all of its power on the chain bench's panels, the example's lamp and
+window), while a lit wall patch the fit pushed over the white lies where the photos saw
+under half the white (none of its power)."""
 GROUP_SHARE = 0.15
 """Emitter clusters closer than this share of the captured space's median depth (plus
 their own sizes) are one light (a window fitted as many patches)."""
@@ -205,7 +218,10 @@ class LightSearch:
                      f"{BRIGHTEST_LIGHT_STOPS:g} stops above white, within "
                      f"2^{POWER_UNCERTAINTY_STOPS[self.power_source]:g}-"
                      f"2^{explain_headroom_stops(self.power_source):g} x their fit: "
-                     "their fitted power is a lower bound)"),
+                     "their fitted power is a lower bound); a light must lie where a photo "
+                     f"saw light over the white ({SEEN_SHARE:g} of its power at least) and is "
+                     "placed where two photos' whole outlines of it meet, when the fit "
+                     "recorded the photos' light regions"),
             "white": self.white,
             "rho_max": RHO_MAX,
             "clipped_headroom_stops": explain_headroom_stops(self.power_source),
@@ -464,13 +480,30 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
         dist = float(np.linalg.norm(placed[idx].mean(0) - viewpoint))
         if seen_at[k] < dist:
             placed[idx] = viewpoint + (placed[idx] - viewpoint) * (seen_at[k] / dist)
+    sightings = Sightings.from_metadata(scene.metadata)
+    if sightings is not None:
+        counts.update(unseen_not_lights=0, placed_by_outlines=0)
     lights = []
     for g in range(int(groups.max()) + 1):
         members = [k for k in range(len(emitting)) if groups[k] == g]
         idx = np.concatenate([emitting[k] for k in members])
-        light = _light(scene, idx, area, colours, source, placed)
         first = max(members, key=lambda k: tests[k]["mean_radiance"])
-        light.test = tests[first]
+        test = dict(tests[first])
+        if sightings is not None:
+            power_of = radiance[idx] * area[idx]
+            seen = float(power_of @ sightings.seen(positions[idx]) / max(power_of.sum(), 1e-30))
+            test["seen_share"] = seen
+            if seen < SEEN_SHARE:
+                counts["unseen_not_lights"] += 1
+                continue
+            met = sightings.locate(positions[idx], power_of)
+            if met is not None:
+                w = power_of / max(power_of.sum(), 1e-30)
+                placed[idx] += met["position"] - w @ placed[idx]
+                test["outline_baseline_deg"] = met["baseline_deg"]
+                counts["placed_by_outlines"] += 1
+        light = _light(scene, idx, area, colours, source, placed)
+        light.test = test
         lights.append(light)
         emitters[idx] = True
     lights.sort(key=lambda li: -float(li.power.max()))

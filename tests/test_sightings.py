@@ -1,0 +1,115 @@
+"""Where the photos saw light: cones from the views' regions over the white.
+
+Views are rendered from a room of splats with a lamp and a window (tests/test_lights.py),
+then the splats are spoiled as fits spoil them: a bright patch no photo saw, a lamp
+pushed along the rays. The lights finder, given the views' sightings, undoes both.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from test_lights import LAMP, room_scene
+
+from gaslight_usd.fit.backdrop import concatenate
+from gaslight_usd.fit.power import aimed_camera
+from gaslight_usd.lights import search_lights
+from gaslight_usd.ply import read_ply, write_ply
+from gaslight_usd.render import render
+from gaslight_usd.sightings import Sightings, block_max, sight_lights
+from gaslight_usd.splats import SplatScene
+
+Y709 = np.array([0.2126, 0.7152, 0.0722], np.float32)
+SIZE = 96
+
+
+def _cameras() -> list:
+    """Eight photos from the middle of the room, each aimed between the lamp and the
+    window (both framed whole where they are in front)."""
+    angles = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    eyes = np.column_stack([0.9 * np.cos(angles), 1.4 + 0.1 * np.sin(angles),
+                            0.9 * np.sin(angles) - 0.3])
+    target = np.array([0.4, 1.8, 0.3])
+    return [aimed_camera(e, target, 0.75, SIZE) for e in eyes]
+
+
+def _views(scene: SplatScene, cams: list) -> list[np.ndarray]:
+    return [render(scene, cam).image.numpy() for cam in cams]
+
+
+def _with_sightings(scene: SplatScene, cams: list, images: list[np.ndarray]) -> SplatScene:
+    meta = dict(scene.metadata)
+    meta["cameras"] = {"centres": [c.center.tolist() for c in cams]}
+    meta["light_sightings"] = sight_lights(cams, images, 1.0, Y709).as_dict()
+    scene.metadata = meta
+    return scene
+
+
+def test_block_max_keeps_a_one_pixel_light():
+    image = np.zeros((480, 640), np.float32)
+    image[101, 333] = 9.0
+    small, k = block_max(image)
+    assert k == 4 and small.shape == (120, 160)
+    assert small.max() == 9.0 and small[101 // 4, 333 // 4] == 9.0
+
+
+def test_sightings_hold_the_lamp_not_the_dark_floor_and_survive_a_ply(tmp_path):
+    scene, _ = room_scene()
+    cams = _cameras()
+    sightings = sight_lights(cams, _views(scene, cams), 1.0, Y709)
+    assert sightings.count > 0 and sightings.whole.any()
+    seen = sightings.seen(np.array([LAMP, [0.6, 0.8, -0.5]]))
+    assert seen.tolist() == [True, False]
+    # the cones travel in the PLY's metadata and read back the same
+    scene = _with_sightings(scene, cams, _views(scene, cams))
+    back = Sightings.from_metadata(read_ply(write_ply(tmp_path / "s.ply", scene)).metadata)
+    assert back is not None and back.count == sightings.count
+    np.testing.assert_allclose(back.axes, sightings.axes, atol=1e-5)
+    np.testing.assert_allclose(back.radii, sightings.radii, atol=1e-5)
+    # a light framed whole by several views is placed where their rays meet
+    lamp = LAMP + np.random.default_rng(1).normal(0, 0.01, (20, 3))
+    met = back.locate(lamp, np.ones(len(lamp)))
+    assert met is not None and len(met["views"]) >= 2
+    assert np.linalg.norm(met["position"] - LAMP) < 0.04
+
+
+def test_a_bright_patch_no_photo_saw_is_not_a_light():
+    scene, parts = room_scene()
+    cams = _cameras()
+    images = _views(scene, cams)
+    # the fit's floater: a patch in the room far brighter than anything could light it,
+    # where every photo saw a dim wall behind it
+    rng = np.random.default_rng(2)
+    patch_pos = np.array([0.6, 0.8, -0.5]) + rng.normal(0, 0.03, (12, 3))
+    patch = SplatScene.from_activated(patch_pos, np.full((12, 3), 40.0), np.full((12, 3), 0.03),
+                                      np.full(12, 0.9))
+    spoiled = concatenate(patch, scene)  # first: the fit's backdrop stays last
+    spoiled.metadata = dict(scene.metadata)
+    patch_idx = np.arange(12)
+    parts = {k: v + 12 for k, v in parts.items()}
+    blind = search_lights(spoiled)
+    assert blind.emitters[patch_idx].all()  # without the photos' word it is a light
+    found = search_lights(_with_sightings(spoiled, cams, images))
+    assert not found.emitters[patch_idx].any()
+    assert found.emitters[parts["lamp"]].all() and found.emitters[parts["window"]].mean() > 0.9
+    assert len(found.lights) == 2 and found.counts["unseen_not_lights"] == 1
+    assert all(light.test["seen_share"] > 0.9 for light in found.lights)
+
+
+def test_a_lamp_pushed_along_the_rays_goes_back_where_its_outlines_meet():
+    scene, parts = room_scene()
+    cams = _cameras()
+    images = _views(scene, cams)
+    # push the lamp 12 cm along the mean ray of the photos framing it: they still see it
+    # inside its outline, but the fit put it at the wrong depth
+    pos = scene.positions.copy()
+    ray = LAMP - np.mean([c.center for c in cams], axis=0)
+    pos[parts["lamp"]] += 0.12 * ray / np.linalg.norm(ray)
+    pushed = SplatScene(pos, scene.rotations, scene.log_scales, scene.opacity_logits, scene.sh,
+                        metadata=dict(scene.metadata))
+    before = [li for li in search_lights(pushed).lights if li.radius < 0.1][0]
+    assert np.linalg.norm(before.position - LAMP) > 0.1
+    found = search_lights(_with_sightings(pushed, cams, images))
+    lamp = [li for li in found.lights if li.radius < 0.1][0]
+    assert found.counts["placed_by_outlines"] >= 1
+    assert lamp.test["outline_baseline_deg"] >= 10.0
+    assert np.linalg.norm(lamp.position - LAMP) < 0.04
