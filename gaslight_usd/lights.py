@@ -209,6 +209,10 @@ class LightSearch:
     white: float
     power_source: str
     counts: dict[str, int] = field(default_factory=dict)
+    positions: np.ndarray | None = None
+    """(N, 3) where the search put the splats: the lights' ones moved onto the surface
+    they are seen through or to where their outlines meet (steps 4 and 6), the rest as
+    fitted; None when no light was found (all as fitted)."""
 
     def summary(self) -> dict[str, Any]:
         return {
@@ -508,7 +512,8 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
         emitters[idx] = True
     lights.sort(key=lambda li: -float(li.power.max()))
     counts["emitters"] = int(emitters.sum())
-    return LightSearch(lights, emitters, backdrop, space, white, source, counts)
+    return LightSearch(lights, emitters, backdrop, space, white, source, counts,
+                       placed.astype(np.float32))
 
 
 def find_lights(scene: SplatScene, space: CaptureSpace | None = None) -> list[Light]:

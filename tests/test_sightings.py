@@ -8,6 +8,7 @@ pushed along the rays. The lights finder, given the views' sightings, undoes bot
 from __future__ import annotations
 
 import numpy as np
+from pxr import Usd, UsdGeom
 from test_lights import LAMP, room_scene
 
 from gaslight_usd.fit.backdrop import concatenate
@@ -17,6 +18,7 @@ from gaslight_usd.ply import read_ply, write_ply
 from gaslight_usd.render import render
 from gaslight_usd.sightings import Sightings, block_max, sight_lights
 from gaslight_usd.splats import SplatScene
+from gaslight_usd.usd.scene import ExportOptions, export_usd
 
 Y709 = np.array([0.2126, 0.7152, 0.0722], np.float32)
 SIZE = 96
@@ -95,7 +97,7 @@ def test_a_bright_patch_no_photo_saw_is_not_a_light():
     assert all(light.test["seen_share"] > 0.9 for light in found.lights)
 
 
-def test_a_lamp_pushed_along_the_rays_goes_back_where_its_outlines_meet():
+def test_a_lamp_pushed_along_the_rays_goes_back_where_its_outlines_meet(tmp_path):
     scene, parts = room_scene()
     cams = _cameras()
     images = _views(scene, cams)
@@ -113,3 +115,10 @@ def test_a_lamp_pushed_along_the_rays_goes_back_where_its_outlines_meet():
     assert found.counts["placed_by_outlines"] >= 1
     assert lamp.test["outline_baseline_deg"] >= 10.0
     assert np.linalg.norm(lamp.position - LAMP) < 0.04
+    # the instancer's emitters are where the light is, not where the fit pushed them
+    export_usd(pushed, tmp_path / "scene.usda", ExportOptions(variants=("instancer",)))
+    stage = Usd.Stage.Open(str(tmp_path / "scene.instancer.usdc"))
+    inst = UsdGeom.PointInstancer(stage.GetPrimAtPath("/Emitters/Instancer"))
+    points = np.asarray(inst.GetPositionsAttr().Get(), np.float64)
+    near_lamp = np.linalg.norm(points - LAMP, axis=1) < 0.1
+    assert near_lamp.sum() == len(parts["lamp"])

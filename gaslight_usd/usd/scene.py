@@ -119,6 +119,13 @@ def _write_instancer(folder: Path, stem: str, scene: SplatScene, frame: StageFra
     from . import instancer as inst  # UsdShade: only when an instancer is written
 
     mask = None if opts.emit_threshold is not None or search is None else search.emitters
+    if mask is not None and search.positions is not None and mask.any():
+        # the emitters where the lights finder put them (on the surface they are seen
+        # through, where their outlines meet), not where the fit smeared them
+        pos = scene.positions.copy()
+        pos[mask] = search.positions[mask]
+        scene = SplatScene(pos, scene.rotations, scene.log_scales, scene.opacity_logits,
+                           scene.sh, normals=scene.normals, metadata=scene.metadata)
     report = inst.write_instancer(stage, root.GetPath(), scene, opts.emit_threshold,
                                   opts.palette_tolerance, opts.non_emitters, seed=opts.seed,
                                   mask=mask)
