@@ -133,3 +133,17 @@ def test_scaled_sh_scales_the_radiance_not_the_offset_coefficients():
     np.testing.assert_allclose(scaled.base_colours[scene.base_colours > 0],
                                3.0 * scene.base_colours[scene.base_colours > 0], rtol=1e-5)
     np.testing.assert_allclose(scaled.sh[:, 1:], 3.0 * sh[:, 1:], rtol=1e-6)
+
+
+def test_a_lamp_left_nine_stops_short_is_still_weighed_by_the_floor_it_lights():
+    """As fitted, a lamp 9 stops short gives the floor 2 % of its light, under the share a
+    light needs to be weighed; at the power the floor implies it gives 90 %: the share is
+    judged there (the lights the uplift leaves shortest are the ones to correct)."""
+    scene, cams, floors, lamp_idx, _ = _room(512.0)
+    _, lights = infer_light_power(scene, cams, floors, Y709, extent=4.0,
+                                  measured=scene.count, seed=1)
+    light = lights[0]
+    assert "note" not in light.details
+    assert light.details["median_direct_share"] > 0.5
+    assert abs(light.details["inferred_log2_factor"] - 9.0) <= 0.75
+    assert light.source == "inferred" and abs(math.log2(light.factor) - 9.0) <= 1.0
