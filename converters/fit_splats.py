@@ -125,8 +125,7 @@ def fit(ctx: StageContext) -> StageResult:
         "fit_metrics": result.metrics,
         # where the photos saw light over the white: the lights finder keeps only lights
         # there and places those two photos frame whole (gaslight_usd.sightings)
-        "light_sightings": _light_sightings(data, float(attrs.get("gaslight:exposure_scale",
-                                                                  1.0) or 1.0)),
+        "light_sightings": result.scene.metadata.get("light_sightings"),
     }
     if not result.metrics["held_out_views"]:
         ctx.progress.message(
@@ -215,18 +214,3 @@ CONVERTERS = [
     ),
 ]
 
-
-def _light_sightings(data, exposure_scale: float) -> dict:
-    """The views' light regions as cones (:func:`gaslight_usd.sightings.sight_lights`),
-    over the white the photos clipped at (the median of the views' brightest clip
-    floors), or ``exposure_scale`` when no view clipped."""
-    import numpy as np
-
-    from gaslight_usd.colour import luminance_weights
-    from gaslight_usd.sightings import sight_lights
-
-    whites = [float(f.max()) for f in (data.floor(i) for i in range(len(data.images)))
-              if f is not None]
-    white = float(np.median(whites)) if whites else exposure_scale
-    weights = np.asarray(luminance_weights(data.colour_space or None, fallback=True), np.float32)
-    return sight_lights(data.cameras, data.images, white, weights).as_dict()

@@ -42,6 +42,7 @@ from ..errors import FitDiverged, InputError
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
+from ..sightings import sight_lights
 from ..splats import SplatScene
 from .backdrop import concatenate, unseen_backdrop
 from .checkpoint import load_checkpoint, save_checkpoint
@@ -405,6 +406,19 @@ class Trainer:
                               self.y_weights.cpu().numpy())
         return cut_lights(self.data.cameras, ratios, self.data.names)
 
+    def _light_sightings(self) -> dict[str, Any]:
+        """The views' light regions as cones (:func:`gaslight_usd.sightings.sight_lights`),
+        from every view (held-out ones too), over the white the photos clipped at (the
+        median of the views' brightest clip floors), or the views' exposure scale when
+        no view clipped."""
+        whites = [float(f.max()) for f in (self.data.floor(i)
+                                           for i in range(len(self.data.images)))
+                  if f is not None]
+        white = float(np.median(whites)) if whites else float(
+            self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
+        return sight_lights(self.data.cameras, self.data.images, white,
+                            self.y_weights.cpu().numpy()).as_dict()
+
     def _pose_agreement(self) -> dict[str, Any] | None:
         """How the given poses agree with the photos (:mod:`gaslight_usd.poses.agreement`):
         the triangulation's matches, else the model's own observations; None when
@@ -468,6 +482,12 @@ class Trainer:
                 [self.data.cameras[i] for i in self.train])
         if not self.held:
             metrics["note"] = "no held-out views (too few views): errors are on training views"
+        # where the photos were taken and where they saw light over the white: the
+        # captured space, the default probe and the lights finder start there
+        scene.metadata = {**scene.metadata,
+                          "cameras": {"centres": [[round(float(v), 6) for v in c.center]
+                                                  for c in self.data.cameras]},
+                          "light_sightings": self._light_sightings()}
         if self.checkpoint is not None:
             self.elapsed = seconds
             save_checkpoint(self.checkpoint, self._state())
