@@ -108,7 +108,7 @@ def describe_ply(path: Path) -> dict[str, Any]:
             else "unknown"),
         "lights": _lights(scene),
         "colour_dynamic_range_stops": round(dynamic_range_stops(peak), 2) if scene.count else 0,
-        "metadata": scene.metadata,
+        "metadata": {**scene.metadata, **_sightings_line(scene.metadata)},
         "bytes": path.stat().st_size,
     }
 
@@ -118,6 +118,21 @@ def _lights(scene) -> list[dict[str, Any]]:
     from .lights import find_lights
 
     return [_light_line(light.as_dict()) for light in find_lights(scene)]
+
+
+def _sightings_line(metadata: dict[str, Any]) -> dict[str, Any]:
+    """The photos' light regions in a line, not a row per region (they are for the
+    lights finder; ``gaslight_usd.sightings.Sightings.from_metadata`` reads them)."""
+    from .sightings import Sightings
+
+    if "light_sightings" not in metadata:
+        return {}
+    seen = Sightings.from_metadata(metadata)
+    if seen is None:
+        return {"light_sightings": "unreadable (no camera centres, or malformed)"}
+    return {"light_sightings": (
+        f"{seen.count} light regions over white {seen.white:.4g} ({int(seen.whole.sum())} "
+        f"framed whole) in {len(set(seen.view.tolist()))} of {len(seen.origins)} photos")}
 
 
 def _light_line(light: dict[str, Any]) -> dict[str, Any]:

@@ -58,6 +58,20 @@ def test_info_ply(tmp_path):
     assert facts["metadata"]["colour_space"] == "ACEScg"
 
 
+def test_info_ply_says_the_photos_light_regions_in_a_line(tmp_path):
+    rows = [[0, 0.0, 0.0, 1.0, 2.0, 1, 40.0], [0, 0.6, 0.0, 0.8, 1.0, 0, 3.0],
+            [1, 0.0, 0.0, 1.0, 2.0, 1, 30.0]]
+    scene = SplatScene.from_activated(
+        positions=np.zeros((1, 3), np.float32), colours=np.full((1, 3), 0.5),
+        scales=np.full(1, 0.05), opacities=np.full(1, 0.8),
+        metadata={"cameras": {"centres": [[0, 0, 0], [1, 0, 0], [2, 0, 0]]},
+                  "light_sightings": {"white": 0.9, "regions": rows}})
+    path = write_ply(tmp_path / "s.ply", scene)
+    facts = json.loads(run_cli("info", path, "--json").stdout)
+    assert facts["metadata"]["light_sightings"] == (
+        "3 light regions over white 0.9 (2 framed whole) in 2 of 3 photos")
+
+
 def test_info_usd(tmp_path):
     path = tmp_path / "s.usda"
     stage = Usd.Stage.CreateNew(str(path))
