@@ -236,6 +236,9 @@ def test_a_light_smeared_behind_the_ceiling_is_one_light_at_the_ceiling():
     assert np.linalg.norm(light.position - PANEL) < 0.1
     assert light.position[1] < 3.0 + 0.02
     assert all(li.position[1] < 3.05 for li in found.lights)
+    # the light is placed at its nearest strong part, but its sunk splats are not moved
+    # there for the instancer: which part is right the photos do not say
+    np.testing.assert_allclose(found.positions[sunk], scene.positions[sunk], atol=1e-6)
 
 
 def test_an_emitter_behind_the_surface_it_is_seen_through_is_moved_onto_it():

@@ -120,8 +120,8 @@ def _write_instancer(folder: Path, stem: str, scene: SplatScene, frame: StageFra
 
     mask = None if opts.emit_threshold is not None or search is None else search.emitters
     if mask is not None and search.positions is not None and mask.any():
-        # the emitters where the lights finder put them (on the surface they are seen
-        # through, where their outlines meet), not where the fit smeared them
+        # the emitters where the evidence puts them (on the surface they are seen
+        # through, where their outlines meet), not sunk where the fit left them
         pos = scene.positions.copy()
         pos[mask] = search.positions[mask]
         scene = SplatScene(pos, scene.rotations, scene.log_scales, scene.opacity_logits,
