@@ -213,4 +213,3 @@ CONVERTERS = [
         options=FitOptions,
     ),
 ]
-
