@@ -58,12 +58,19 @@ def main(folder: Path, out: Path, run_args: list[str]) -> None:
     print("default probe", probe.round(2), "inside the room:", bool(beyond(probe) <= 0))
     found = search_lights(scene)
     em = to_true(scene.positions[found.emitters])
+    # where the instancer writes them: moved where the evidence says (lights.py step 6)
+    put = to_true(found.positions[found.emitters]) if len(em) else np.zeros((0, 3))
     print(f"emitters {len(em)}, outside the room by > {MARGIN} m: "
-          f"{int((beyond(em) > MARGIN).sum()) if len(em) else 0}")
+          f"{int((beyond(em) > MARGIN).sum()) if len(em) else 0} as fitted, "
+          f"{int((beyond(put) > MARGIN).sum()) if len(put) else 0} as the instancer writes them")
+    print("photos' word:", {k: v for k, v in found.counts.items()
+                            if k in ("unseen_not_lights", "placed_by_outlines")})
     truth = scene_lights(info)
     for light in truth:
         d = emitter_distance(light, em).min() if len(em) else np.inf
-        print(f"  {light['name']}: nearest emitter {d:.3f} m")
+        d_put = emitter_distance(light, put).min() if len(put) else np.inf
+        print(f"  {light['name']}: nearest emitter {d:.3f} m as fitted, {d_put:.3f} m as "
+              "written")
     pts = to_true(np.array([light.position for light in found.lights])) if found.lights \
         else np.zeros((0, 3))
     near = [min(float(emitter_distance(li, p[None])[0]) for li in truth) for p in pts]
