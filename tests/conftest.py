@@ -21,7 +21,9 @@ tests/data/make_test_hdris.py (see tests/data/README.md). Tests read these, neve
 EXAMPLE = REPO / "examples" / "room"
 """The bundled example (photos, true HDR views, true poses, probes)."""
 needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
-                                   reason="the bundled example examples/room is missing")
+                                   reason="the bundled example examples/room is missing: "
+                                          "it ships with the project (git checkout "
+                                          "examples/room)")
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 import pytest
+from conftest import EXAMPLE, needs_example
 
 from gaslight_usd.cameras import (
     PinholeCamera,
@@ -34,12 +35,7 @@ from gaslight_usd.poses.panorama import FACES, cube_faces, face_camera
 from gaslight_usd.poses.sfm import SfmOptions, solve_poses, triangulate_known_poses
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "room"
 HDRI = ROOT / "tests" / "data" / "hdri"
-needs_example = pytest.mark.skipif(not (EXAMPLE / "digests.json").exists(),
-                                   reason="the bundled example examples/room is missing: "
-                                          "it ships with the project (git checkout "
-                                          "examples/room)")
 
 
 def look_at(centre, target, up=(0, 1, 0), name="") -> PinholeCamera:
