@@ -399,6 +399,28 @@ def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.
     return connected_components(coo_matrix(near | smear), directed=False)[1], seen_at
 
 
+def _weighed_by_the_fit(light: Light, metadata: Mapping[str, Any]) -> None:
+    """Where the fit weighed this light by the surfaces it lights (its ``clipped_lights``,
+    :mod:`gaslight_usd.fit.power`), the light's power came from there: its splats already
+    carry the factor, and the fit's uncertainty replaces the uplift's."""
+    fit = metadata.get("fit_metrics")
+    weighed = fit.get("clipped_lights") if isinstance(fit, Mapping) else None
+    for entry in weighed or []:
+        if not isinstance(entry, Mapping) or entry.get("power_source") not in (
+                "inferred", "fused"):
+            continue
+        try:
+            where = np.asarray(entry["position"], np.float64).reshape(3)
+            reach = float(entry.get("radius") or 0.0) + light.radius
+        except (KeyError, TypeError, ValueError):
+            continue
+        if np.linalg.norm(where - light.position) <= max(reach, 1e-6):
+            light.power_source = str(entry["power_source"])
+            light.power_uncertainty_stops = round(float(entry["power_uncertainty_stops"]), 3)
+            light.test["inferred_factor"] = float(entry.get("factor", 1.0))
+            return
+
+
 def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                   source: str | None = None) -> LightSearch:
     """Find the lights of ``scene`` (module docstring) and say how."""
@@ -513,6 +535,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                 counts["placed_by_outlines"] += 1
         light = _light(scene, idx, area, colours, source, placed)
         light.test = test
+        _weighed_by_the_fit(light, scene.metadata)
         lights.append(light)
         emitters[idx] = True
     lights.sort(key=lambda li: -float(li.power.max()))

@@ -9,12 +9,14 @@ import numpy as np
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
 from gaslight_usd.fit.power import (
+    LightPower,
     aimed_camera,
-    clipped_light_splats,
     gather_irradiance,
     infer_light_power,
+    light_is_clipped,
     scaled_sh,
 )
+from gaslight_usd.render import render
 from gaslight_usd.splats import SplatScene
 
 Y709 = np.array(REC709_Y, np.float32)
@@ -47,22 +49,22 @@ def test_light_irradiance_matches_a_gaussian_emitter():
 
 
 def _room(k_true: float, seed: int = 0):
-    """A floor of textured splats under a dome of sky splats (radiance 0.05) and a lamp of
+    """A floor of textured splats under a dome of sky splats (radiance 0.05, 6 m away) and a lamp of
     seven translucent splats, the floor lit by the lamp at k_true x its fitted radiance.
 
     The floor's radiance is analytic: albedo / pi x (pi x 0.05 from the sky + the lamp's
     splats as Gaussian emitters, R a 2 pi s^2 cos / d^2 each x k_true)."""
     rng = np.random.default_rng(seed)
-    g = np.arange(-1.875, 1.9, 0.25)
+    g = np.arange(-1.9375, 1.95, 0.125)
     fx, fz = np.meshgrid(g, g)
     floor_pos = np.stack([fx.ravel(), np.zeros(fx.size), fz.ravel()], 1)
     albedo = rng.uniform(0.15, 0.8, len(floor_pos))
     th, ph = np.meshgrid(np.linspace(0.05, 1.5, 14), np.linspace(0, 2 * np.pi, 48,
                                                                   endpoint=False))
-    dome_pos = 4.0 * np.stack([np.sin(th) * np.cos(ph), np.cos(th), np.sin(th) * np.sin(ph)],
+    dome_pos = 6.0 * np.stack([np.sin(th) * np.cos(ph), np.cos(th), np.sin(th) * np.sin(ph)],
                               -1).reshape(-1, 3)
     dome = SplatScene.from_activated(dome_pos, np.full((len(dome_pos), 3), 0.05),
-                                     np.full((len(dome_pos), 3), 0.45),
+                                     np.full((len(dome_pos), 3), 0.65),
                                      np.full(len(dome_pos), 0.99))
     a = np.arange(7) * 2 * np.pi / 7
     lamp_pos = np.array([0.0, 1.2, 0.0]) + 0.08 * np.stack([np.cos(a), np.zeros(7),
@@ -74,7 +76,7 @@ def _room(k_true: float, seed: int = 0):
     dist = np.linalg.norm(d, axis=-1)
     direct = (r_fit * opacity * 2 * np.pi * sigma ** 2 * d[..., 1] / dist ** 3).sum(1)
     radiance = albedo / np.pi * (np.pi * 0.05 + k_true * direct)
-    floor = _flat(floor_pos, 0.15, np.repeat(radiance[:, None], 3, 1))
+    floor = _flat(floor_pos, 0.08, np.repeat(radiance[:, None], 3, 1))
     scene = _concat(floor, dome, lamp)
     lamp_idx = np.arange(scene.count - 7, scene.count)
     # three views above the floor; the lamp clipped where it lands (floor 10: dimmer than
@@ -96,32 +98,71 @@ def _look(eye, target):
     return cam.R, cam.t
 
 
-def test_clipped_light_splats_are_the_lamp_only():
-    scene, cams, floors, lamp_idx, _ = _room(4.0)
-    mask = clipped_light_splats(scene, cams, floors, Y709)
-    assert set(np.nonzero(mask)[0]) == set(lamp_idx)
+def _photos(k_true: float, scramble: bool = False):
+    """:func:`_room` seen by its three cameras as the photos saw it: the lamp at ``k_true``
+    x its fitted radiance (so the floor's light is the lamp's), clipped where it lands.
+    ``scramble``: the fit's floor splats swap colours among themselves (a fit's single
+    splats are not the surface the photos measured; only their composite is)."""
+    scene, cams, floors, lamp_idx, n_floor = _room(k_true)
+    truth = scene.subset(np.arange(scene.count))
+    truth.sh[lamp_idx] = scaled_sh(scene.sh[lamp_idx], k_true)
+    images = [render(truth, cam).image.numpy() for cam in cams]
+    if scramble:
+        scene.sh[:n_floor] = scene.sh[np.random.default_rng(5).permutation(n_floor)]
+    surfaces = np.zeros(scene.count, bool)
+    surfaces[:n_floor] = True
+    opaque = scene.opacities > 0.5
+    light = LightPower(position=scene.positions[lamp_idx].mean(0), splats=lamp_idx,
+                       radius=0.09)
+    return scene, cams, images, floors, light, surfaces, opaque
 
 
-def test_power_of_a_clipped_lamp_is_inferred_from_the_floor_it_lights():
-    """The lamp's fitted radiance is 4x (2 stops) short; the floor it lights says so."""
-    scene, cams, floors, lamp_idx, n_floor = _room(4.0)
-    out, lights = infer_light_power(scene, cams, floors, Y709, extent=4.0,
-                                    measured=scene.count, seed=1)
-    assert len(lights) == 1
-    light = lights[0]
+def _weigh(k_true: float, scramble: bool = False):
+    scene, cams, images, floors, light, surfaces, opaque = _photos(k_true, scramble)
+    out = infer_light_power(scene, [light], cams, images, floors, Y709, surfaces, opaque,
+                            extent=4.0, seed=1)
+    return scene, out, light
+
+
+def test_power_of_a_clipped_lamp_is_inferred_from_the_floor_the_photos_measured():
+    """The lamp's fitted radiance is 16x (4 stops) short; the floor it lights says so."""
+    scene, out, light = _weigh(16.0)
     inferred, sigma = (light.details["inferred_log2_factor"],
                        light.details["inferred_sigma_stops"])
-    # the floor's albedo texture (0.15-0.8) dominates its variation, so this is a weak
-    # signal: within 3/4 stop, and the stated uncertainty covers the error
-    assert abs(inferred - 2.0) <= 0.75
-    assert abs(inferred - 2.0) <= 2.5 * sigma
-    # fused with the fill (k = 1 at 1.5 stops): between the two, nearer the better one
+    # the floor's albedo texture (0.15-0.8) dominates its variation: within 3/4 stop, and
+    # the stated uncertainty covers the error
+    assert abs(inferred - 4.0) <= 0.75
+    assert abs(inferred - 4.0) <= 2.5 * sigma
+    # fused with the fill (k = 1, 3 stops): between the two, nearer the surfaces' word
     fused = math.log2(light.factor)
-    assert 0.0 < fused <= inferred + 1e-9
-    assert light.uncertainty_stops <= min(sigma, 1.5) + 1e-9
-    ratio = out.base_colours[lamp_idx].mean() / scene.base_colours[lamp_idx].mean()
+    assert 3.0 < fused <= inferred + 1e-9
+    assert light.source == "inferred" and light.uncertainty_stops <= sigma + 1e-9
+    assert not light.details["lower_bound"]  # the sky's light pins the albedos' scale
+    lamp = light.splats
+    ratio = out.base_colours[lamp].mean() / scene.base_colours[lamp].mean()
     assert abs(ratio / light.factor - 1) < 1e-4
-    np.testing.assert_array_equal(out.sh[:n_floor], scene.sh[:n_floor])
+    others = np.setdiff1d(np.arange(scene.count), lamp)
+    np.testing.assert_array_equal(out.sh[others], scene.sh[others])
+
+
+def test_the_photos_not_the_splats_colours_say_what_the_surfaces_reflect():
+    """Shuffled floor splat colours leave the photos (and the answer) as they were; the
+    splats' colours alone would say nothing (a uniform random texture, no lamp in it)."""
+    _, _, light = _weigh(16.0, scramble=True)
+    assert abs(light.details["inferred_log2_factor"] - 4.0) <= 0.75
+
+
+def test_a_lamp_the_fit_got_right_is_left_alone():
+    _, out, light = _weigh(1.0)
+    assert abs(light.details["inferred_log2_factor"]) <= 0.75
+    assert math.log2(light.factor) <= 0.75
+
+
+def test_a_lamp_some_photo_measured_is_not_weighed():
+    scene, cams, images, floors, light, _, _ = _photos(16.0)
+    assert light_is_clipped(light.position, cams, images, floors, Y709, white=1.0)
+    floors[1] = None  # a darker frame: it saw the lamp unclipped, far over the white
+    assert not light_is_clipped(light.position, cams, images, floors, Y709, white=1.0)
 
 
 def test_scaled_sh_scales_the_radiance_not_the_offset_coefficients():
@@ -136,14 +177,13 @@ def test_scaled_sh_scales_the_radiance_not_the_offset_coefficients():
 
 
 def test_a_lamp_left_nine_stops_short_is_still_weighed_by_the_floor_it_lights():
-    """As fitted, a lamp 9 stops short gives the floor 2 % of its light, under the share a
-    light needs to be weighed; at the power the floor implies it gives 90 %: the share is
-    judged there (the lights the uplift leaves shortest are the ones to correct)."""
-    scene, cams, floors, lamp_idx, _ = _room(512.0)
-    _, lights = infer_light_power(scene, cams, floors, Y709, extent=4.0,
-                                  measured=scene.count, seed=1)
-    light = lights[0]
+    """As fitted, a lamp 9 stops short gives the floor 0.2 % of its light; the factor is
+    judged where the floor's albedos are even, not as fitted (the lights the uplift
+    leaves shortest are the ones to correct). At the right power the lamp gives the floor
+    almost all its light, so the albedos' spread no longer depends on the factor and the
+    cap (three quarters of them matte, at most 1) decides: a lower bound, and said."""
+    _, _, light = _weigh(512.0)
     assert "note" not in light.details
-    assert light.details["median_direct_share"] > 0.5
-    assert abs(light.details["inferred_log2_factor"] - 9.0) <= 0.75
-    assert light.source == "inferred" and abs(math.log2(light.factor) - 9.0) <= 1.0
+    assert light.details["lower_bound"]
+    assert 9.0 - 1.25 <= light.details["inferred_log2_factor"] <= 9.0 + 0.25
+    assert light.source == "inferred" and math.log2(light.factor) >= 9.0 - 1.5

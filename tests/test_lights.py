@@ -317,3 +317,19 @@ def test_a_probe_within_a_lights_reach_is_warned_about(tmp_path, capsys):
     assert main(["hdri", str(ply), "--at", "0,1.5,0", "-o", str(tmp_path / "m.exr"),
                  "--size", "16"]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+def test_a_light_the_fit_weighed_says_its_power_was_inferred():
+    """The fit's ``clipped_lights`` (gaslight_usd.fit.power) name where each clipped light's
+    power came from; the export's lights take it from there, not from the HDR method."""
+    scene, _ = room_scene()
+    assert {light.power_source for light in search_lights(scene).lights} == {"predicted"}
+    scene.metadata = {**scene.metadata, "fit_metrics": {"clipped_lights": [
+        {"position": (LAMP + 0.01).tolist(), "radius": 0.04, "factor": 96.0,
+         "power_source": "inferred", "power_uncertainty_stops": 0.7},
+        {"position": WINDOW.tolist(), "radius": 0.4, "factor": 1.0,
+         "power_source": "predicted", "power_uncertainty_stops": 3.0}]}}
+    window, lamp = search_lights(scene).lights
+    assert (lamp.power_source, lamp.power_uncertainty_stops) == ("inferred", 0.7)
+    assert lamp.test["inferred_factor"] == 96.0
+    assert window.power_source == "predicted"

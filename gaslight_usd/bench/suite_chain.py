@@ -2,9 +2,10 @@
 
 Each scene is a room rendered by ``examples/make_room.py`` (the bundled example
 ``room`` and the variants ``bulb``, ``panels``, ``shade``: other lights, albedos
-and photo counts; rendered into ``<out>/scenes/`` the first time, about 2-3 min
-each on 2 cores). For every scene the chain runs from its LDR photos with the
-true poses (so the uplift and the fit are measured, not SfM), once per method:
+and photo counts; ``NAME:SEED`` draws another room of the variant, e.g. ``room:11``;
+rendered into ``<out>/scenes/`` the first time, about 2-3 min each on 2 cores, 10 for
+a ``room`` draw's 24 photos at 480 x 360). For every scene the chain runs from its LDR
+photos with the true poses (so the uplift and the fit are measured, not SfM), once per method:
 
 * ``truth HDR`` -- the fit from the true HDR views: the ceiling of what the fit can do;
 * ``clipped photos`` -- the photos linearised, clipped lights left clipped: the floor;
@@ -12,6 +13,9 @@ true poses (so the uplift and the fit are measured, not SfM), once per method:
   as bounds (:func:`gaslight_usd.fit.losses.bounded_l1`);
 * ``recursive, fills as targets`` -- the same uplift, its fills fitted like measurements
   (the behaviour before bounds), to show what the bound-aware loss buys;
+* ``recursive, uplift's power`` -- the same uplift and fit, the clipped lights left at the
+  uplift's power (not weighed by the surfaces they light, :mod:`gaslight_usd.fit.power`),
+  to show what that buys;
 * ``recursive + dark frames`` -- the capture the README advises: one photo per light
   re-exposed for that light (:mod:`.dark_frames`), the rest as shot; its unclipped
   light pixels are measurements, the other photos' clipped ones bounds.
@@ -67,7 +71,7 @@ TABLE = ("scene", "probe", "seconds", "irradiance_psnr", "relight_psnr", "pu21_p
 REFERENCES = ("truth HDR", "clipped photos")
 SCENES = ("room", "bulb", "panels", "shade")
 METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets",
-           "recursive + dark frames")
+           "recursive, uplift's power", "recursive + dark frames")
 TRUTH_SPACE = "lin_rec709_scene"
 CONE_MARGIN_DEG = 5.0
 MIN_CONE_DEG = 6.0
@@ -80,11 +84,22 @@ def notes(options: dict[str, Any]) -> list[str]:
 
 # -- scenes ---------------------------------------------------------------------------------
 
+def split_scene(name: str) -> tuple[str, int | None]:
+    """``VARIANT`` or ``VARIANT:SEED`` (another draw of the variant's textures and
+    objects: ``room:11`` is a room the bench and the fit were never tuned on)."""
+    variant, _, seed = name.partition(":")
+    if variant not in SCENES or (seed and not seed.isdigit()):
+        raise GaslightError(f"chain suite: unknown scene {name!r} (scenes: {', '.join(SCENES)}, "
+                            "each optionally :SEED, e.g. room:11)")
+    return variant, int(seed) if seed else None
+
+
 def scene_dir(name: str, out: Path, progress=None) -> Path:
     """The scene's folder: the bundled example, or a variant rendered once into ``out``."""
+    variant, seed = split_scene(name)
     if name == "room":
         return example_room()
-    folder = out / "scenes" / name
+    folder = out / "scenes" / (variant if seed is None else f"{variant}-{seed}")
     if (folder / "digests.json").exists():
         return folder
     script = find_data("examples/make_room.py")
@@ -92,7 +107,8 @@ def scene_dir(name: str, out: Path, progress=None) -> Path:
         raise FileNotFoundError("examples/make_room.py not found: run the bench from a checkout")
     if progress is not None:
         progress.message(f"rendering scene {name!r} with Mitsuba (2-3 min on 2 cores)")
-    subprocess.run([sys.executable, str(script), "--variant", name, "--out", str(folder)],
+    args = ["--variant", variant] + ([] if seed is None else ["--seed", str(seed)])
+    subprocess.run([sys.executable, str(script), *args, "--out", str(folder)],
                    check=True, stdout=subprocess.DEVNULL)
     return folder
 
@@ -302,6 +318,8 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     cfg = preset(preset_name)
     if method == "recursive, fills as targets":
         cfg = cfg.updated(clip_bounds=False)
+    if method == "recursive, uplift's power":
+        cfg = cfg.updated(infer_power=False)
     data = load_fit_data(hdr, folder / "sparse" / "0", working_size=cfg.working_size)
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])
@@ -345,10 +363,12 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
     scenes = options.get("scenes") or (("room",) if quick else SCENES)
     methods = options.get("methods") or (("clipped photos", "recursive") if quick
                                          else METHODS)
-    unknown = [n for n in (*methods, *scenes) if n not in (*METHODS, *SCENES)]
+    unknown = [n for n in methods if n not in METHODS]
     if unknown:
-        raise GaslightError(f"chain suite: unknown method or scene {', '.join(unknown)} "
-                            f"(methods: {', '.join(METHODS)}; scenes: {', '.join(SCENES)})")
+        raise GaslightError(f"chain suite: unknown method {', '.join(unknown)} "
+                            f"(methods: {', '.join(METHODS)})")
+    for name in scenes:
+        split_scene(name)
     renderer = None
     if not quick:
         from ..evaluation.relight import RelightRenderer
@@ -360,7 +380,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
             for method in methods:
                 if progress is not None:
                     progress.message(f"{scene_name}: {method} ({preset_name})")
-                work = out / "work" / scene_name / method.replace(" ", "_").replace(",", "")
+                work = out / "work" / scene_name.replace(":", "-") / method.replace(
+                    " ", "_").replace(",", "").replace("'", "")
                 scene, seconds, scale, metrics = fitted_scene(folder, method, work,
                                                               preset_name, seed)
                 info = json.loads((folder / "scene.json").read_text())

@@ -1,31 +1,48 @@
 """The power of clipped lights, inferred from the surfaces they light.
 
 A photo that clips a lamp says only that the lamp is brighter than white; the
-uplift's fill is a guess. The diffuse surfaces around it were measured, and
-they carry the lamp's power: a matte surface point ``s`` with albedo ``rho_s``
-has radiance
+uplift's fill is a guess, and for a small bright bulb it falls many stops short.
+The diffuse surfaces around it were measured, and they carry the lamp's power: a
+matte surface point ``s`` with albedo ``rho_s`` has radiance
 
     L_s = rho_s / pi * (E_s + sum_j k_j D_js)
 
-where ``E_s`` is the irradiance from every splat that is not a clipped light
-(measured surfaces, unclipped lights), ``D_js`` the irradiance from light ``j``
-as fitted and ``k_j`` the factor its fitted power is off by. Each term comes
-from a small cube map rendered at the surface point with the fitted splats
-(lights and the rest written into separate colour channels, so one render
-gives all of them; occlusion by every splat included).
+where ``E_s`` is the irradiance from every splat that is not a weighed light,
+``D_js`` the irradiance from light ``j`` as fitted and ``k_j`` the factor its
+fitted power is off by. ``E_s`` comes from a small cube map rendered at the point,
+``D_js`` from a narrow view aimed at the light (fine enough that its small splats
+keep their power); every splat occludes.
 
-Albedo varies with the surface's texture, but it does not know where the lamp
-is: with the right ``k`` the albedos ``pi L_s / (E_s + sum_j k_j D_js)`` do not
-depend on how much of a point's light comes from the lamp. So ``k`` is chosen
-to make the log-albedos as uniform as possible (least variance, trimmed of the
-10 % worst points), subject to no albedo above 1. Points whose light is mostly
-indirect pin the albedo scale, points near the lamp then pin ``k``; the
-uncertainty (stops) is the spread of ``log2 k`` over bootstrap resamples of
-the points. The estimate is fused with the uplift's (the fill, ``k = 1``, with
-:data:`PREDICTOR_SIGMA_STOPS`) by inverse variances.
+``L_s`` is what the *photos* measured there, not a splat's colour: a fit's splats
+overlap, and any one of them may be far brighter or darker than the surface the
+composite shows (on the example's ``fast`` fit, neighbouring ceiling splats read
+0.01 and 0.4). Each sample is looked up in the training views that see it face on
+and unoccluded (the fit's depth there agrees with the sample's), on pixels no
+photo clipped; the median over those views is ``L_s``.
 
-A light is a cluster of splats brighter than what the photos could record
-where they saw them (the views' clip floors): see :func:`clipped_light_splats`.
+Albedo varies with the surface's texture, but it does not know where the lamp is:
+with the right ``k`` the albedos ``pi L_s / (E_s + sum_j k_j D_js)`` do not depend
+on how much of a point's light comes from the lamp. So ``k`` is chosen to make the
+log-albedos as uniform as possible (least variance, trimmed of the 10 % worst
+points), subject to most albedos (three quarters) staying at or under 1. Where
+almost all the surfaces' light is this light's, the spread no longer depends on
+``k`` and that cap decides: the factor is then a lower bound, and says so. The
+uncertainty (stops) is the spread of ``log2 k`` over bootstrap resamples of the
+points and :data:`SYSTEMATIC_STOPS` for what resampling cannot show. The estimate
+is fused with the uplift's (the fill, ``k = 1``, with the predictor's
+:data:`PREDICTOR_SIGMA_STOPS`) by inverse variances, and never goes under the
+fill (the fit already holds the light at or above what the photos recorded).
+
+Which lights: only a light that is **clipped** (no training view measured it over
+the white) and **compact** (at most :data:`COMPACT_SHARE` of the captured space's
+median depth across): a compact light's direct light falls off fast and unevenly
+across the room, which the indirect light does not, so the surfaces tell the two
+apart; a window's or a large panel's broad, smooth light looks like more indirect
+light and trades off against the albedos instead (a window came out 2-4 stops too
+bright that way, ``docs/measurements.md``). Those keep the uplift's power, and say
+so. A light whose bootstrap spread exceeds :data:`MAX_INFERRED_SIGMA_STOPS` is not
+identifiable from its surfaces and keeps its fill too.
+
 Measured by ``gaslight2usd bench --suite chain`` (power errors per light).
 """
 
@@ -37,26 +54,50 @@ from typing import Any
 
 import numpy as np
 import torch
-from scipy.sparse.csgraph import connected_components
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..cameras import PinholeCamera, quaternion_to_matrix
+from ..cameras import PinholeCamera
 from ..render import SplatParams, render
 from ..render.envmap import cube_face_cameras, render_cube
 from ..splats import SplatScene, rgb_to_sh_dc, sh_dc_to_rgb
 
-PREDICTOR_SIGMA_STOPS = 1.5
-"""How far the uplift's fill of a clipped light is typically off (stops, 1 sigma): the
-fast predictor's median power error on real panoramas is about 2 stops before its
-shrink (``gaslight2usd bench --suite uplift``)."""
+PREDICTOR_SIGMA_STOPS = 3.0
+"""How far the uplift's fill of a clipped light may be off (stops, 1 sigma): the fast
+predictor leaves small bright bulbs 6-8 stops short on the chain bench's rooms and is
+within about 2 stops on real panoramas (``gaslight2usd bench --suite uplift``); the same
+figure as :data:`gaslight_usd.lights.POWER_UNCERTAINTY_STOPS` ``["predicted"]``."""
+MAX_INFERRED_SIGMA_STOPS = 1.5
+"""A light whose inferred factor spreads more than this over bootstrap resamples of the
+surface points is not identifiable from them: it keeps the uplift's fill."""
+SYSTEMATIC_STOPS = 0.5
+"""Error of the inference that resampling the points does not show (the cube maps' coarse
+irradiance, the photos' blur across neighbouring albedos), added in quadrature to the
+bootstrap spread: on ``tests/test_light_power.py``'s floor, a lamp 4 stops short is
+inferred at 3.5 with a bootstrap spread of under 0.1."""
+COMPACT_SHARE = 0.1
+"""A light is weighed only when its radius is at most this share of the captured space's
+median depth (a bulb, a shade, a small panel; not a window)."""
 CUBE_SIZE = 12
 LIGHT_VIEW_SIZE = 24
-SAMPLE_POINTS = 120
+SAMPLE_POINTS = 400
+"""Surface points gathered (their irradiance costs a cube map and an aimed view each)."""
+NEIGHBOURS = 16
+"""Opaque splats a sample's normal is fitted to (the smallest principal axis)."""
+FLATNESS = 0.3
+"""A sample's neighbourhood is a surface when its smallest principal variance is at most
+this share of the middle one."""
+DEPTH_AGREEMENT = 0.05
+"""A view sees a sample when the fit's depth at its pixel is within this share of the
+sample's own depth (nothing in front of it)."""
+FACING = 0.3
+"""...and looks at it no more obliquely than this cosine."""
 MAX_LIGHTS = 6
-LOG2_K_RANGE = (-6.0, 10.0)
-MIN_DIRECT_SHARE = 0.03
-"""A light that gives the sampled surfaces less than this share of their light (median,
-as fitted) cannot be weighed by them."""
+LOG2_K_RANGE = (-2.0, 12.0)
+ALBEDO_QUANTILE = 0.75
+"""This share of the sampled albedos must stay at or under 1 for a factor to be possible
+(a matte surface reflects at most what reaches it)."""
+MIN_SAMPLES = 20
 
 
 @dataclass
@@ -66,6 +107,7 @@ class LightPower:
     position: np.ndarray
     splats: np.ndarray
     """Indices into the scene."""
+    radius: float = 0.0
     factor: float = 1.0
     """What its splats' radiance was multiplied by."""
     source: str = "predicted"
@@ -75,77 +117,97 @@ class LightPower:
 
     def as_dict(self) -> dict[str, Any]:
         return {"position": [round(float(v), 4) for v in self.position],
+                "radius": round(float(self.radius), 4),
                 "splats": int(len(self.splats)), "factor": round(self.factor, 4),
                 "power_source": self.source,
                 "power_uncertainty_stops": round(self.uncertainty_stops, 3), **self.details}
 
 
-def clipped_light_splats(scene: SplatScene, cameras: list[PinholeCamera],
-                         floors: list[np.ndarray | None], weights: np.ndarray) -> np.ndarray:
-    """Boolean mask of splats that only clipped pixels saw, brighter than the clip floor.
-
-    A splat is a clipped light when, in the views whose frame holds its centre, most
-    land on clipped pixels, and its luminance is at least half the floor there
-    (what the photo recorded: anything dimmer was measurable and is a surface).
-    """
-    pos = scene.positions.astype(np.float64)
-    lum = scene.base_colours @ weights
-    hits = np.zeros(scene.count)
-    seen = np.zeros(scene.count)
-    bright = np.zeros(scene.count, bool)
-    for cam, floor in zip(cameras, floors, strict=True):
-        uv, z = cam.project(pos)
-        inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & (uv[:, 1] >= 0) & \
-                 (uv[:, 1] < cam.height)
-        seen += inside
-        if floor is None:
+def light_is_clipped(position: np.ndarray, cameras: list[PinholeCamera],
+                     images: list[np.ndarray], floors: list[np.ndarray | None],
+                     weights: np.ndarray, white: float) -> bool:
+    """Whether no view measured the light at ``position`` over ``white``: every view that
+    frames it has clipped pixels there, or reads no more than white (a darker frame shot
+    for the light, or an auto-exposure that dropped, measured it)."""
+    for cam, img, floor in zip(cameras, images, floors, strict=True):
+        uv, z = cam.project(np.asarray(position, np.float64)[None])
+        h, w = img.shape[:2]
+        x, y = int(uv[0, 0] * w / cam.width), int(uv[0, 1] * h / cam.height)
+        if not (z[0] > 0 and 0 <= x < w and 0 <= y < h):
             continue
-        h, w = floor.shape
-        ix = np.clip((uv[inside, 0] * w / cam.width).astype(int), 0, w - 1)
-        iy = np.clip((uv[inside, 1] * h / cam.height).astype(int), 0, h - 1)
-        f = floor[iy, ix]
-        idx = np.nonzero(inside)[0]
-        hits[idx] += f > 0
-        bright[idx[(f > 0) & (lum[idx] >= 0.5 * f)]] = True
-    return bright & (hits >= 0.5 * np.maximum(seen, 1)) & (hits > 0)
+        block = (slice(max(0, y - 1), y + 2), slice(max(0, x - 1), x + 2))
+        clipped = floor is not None and bool((floor[block] > 0).any())
+        if not clipped and float((img[block] @ weights).max()) > 2.0 * white:
+            return False
+    return True
 
 
-def group_lights(scene: SplatScene, mask: np.ndarray, radius: float) -> list[np.ndarray]:
-    """Clusters (index arrays) of the masked splats, linked within ``radius``; the
-    brightest :data:`MAX_LIGHTS` by power (luminance x area x opacity)."""
-    idx = np.nonzero(mask)[0]
-    if not len(idx):
-        return []
-    tree = cKDTree(scene.positions[idx])
-    graph = tree.sparse_distance_matrix(tree, radius, output_type="coo_matrix")
-    count, labels = connected_components(graph, directed=False)
-    power = (scene.base_colours[idx].sum(1) * scene.opacities[idx]
-             * np.prod(scene.scales[idx], axis=1) ** (2 / 3))
-    groups = [idx[labels == c] for c in range(count)]
-    totals = np.array([power[labels == c].sum() for c in range(count)])
-    return [groups[c] for c in np.argsort(-totals)[:MAX_LIGHTS]]
+def surface_samples(scene: SplatScene, candidates: np.ndarray, opaque: np.ndarray, count: int,
+                    rng: np.random.Generator, eye: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (of ``candidates``, a bool mask) and unit normals of splats on flat surfaces.
 
-
-def surface_samples(scene: SplatScene, exclude: np.ndarray, count: int, rng: np.random.Generator,
-                    eye: np.ndarray, measured: int) -> tuple[np.ndarray, np.ndarray]:
-    """Indices and unit normals of opaque flat splats to read the lit surfaces at.
-
-    Only the first ``measured`` splats (the fit's; the backdrop's are guesses) that are
-    not in ``exclude``; the normal is the shortest axis, turned towards ``eye``.
+    The normal is the smallest principal axis of the :data:`NEIGHBOURS` nearest ``opaque``
+    splats (a fit's single splats are not flat enough to say), turned towards ``eye``;
+    samples whose neighbourhood is not flat (:data:`FLATNESS`) are dropped.
     """
-    scales = scene.scales
-    flat = scales.min(1) < 0.35 * np.median(scales, axis=1)
-    ok = (scene.opacities > 0.6) & flat & ~exclude
-    ok[measured:] = False
-    cand = np.nonzero(ok)[0]
+    cand = np.flatnonzero(candidates)
+    others = np.flatnonzero(opaque)
+    if len(cand) == 0 or len(others) < NEIGHBOURS:
+        return np.zeros(0, np.int64), np.zeros((0, 3))
     if len(cand) > count:
         cand = np.sort(rng.choice(cand, count, replace=False))
-    rot = quaternion_to_matrix(scene.rotations[cand])
-    axis = np.argmin(scales[cand], axis=1)
-    normals = np.take_along_axis(rot, axis[:, None, None].repeat(3, 1), 2)[..., 0]
-    to_eye = eye - scene.positions[cand]
-    normals *= np.sign(np.sum(normals * to_eye, axis=1, keepdims=True) + 1e-12)
-    return cand, normals
+    pos = scene.positions.astype(np.float64)
+    _, nb = cKDTree(pos[others]).query(pos[cand], k=NEIGHBOURS)
+    local = pos[others][nb]
+    local = local - local.mean(1, keepdims=True)
+    vals, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", local, local))
+    flat = vals[:, 0] <= FLATNESS * np.maximum(vals[:, 1], 1e-30)
+    normals = vecs[:, :, 0]
+    normals *= np.sign(np.sum(normals * (eye - pos[cand]), 1, keepdims=True) + 1e-12)
+    return cand[flat], normals[flat]
+
+
+def depth_map(scene: SplatScene, camera: PinholeCamera) -> np.ndarray:
+    """``(H, W)`` alpha-weighted depth of the splats seen by ``camera`` (inf where none)."""
+    z = (scene.positions.astype(np.float64) @ camera.R.T + camera.t)[:, 2]
+    params = channel_scene(scene, np.repeat(np.maximum(z, 0.0)[:, None], 3, 1))
+    with torch.no_grad():
+        out = render(params, camera, background=0.0)
+    alpha = out.alpha.cpu().numpy()
+    return np.where(alpha > 0.5, out.image[..., 0].cpu().numpy() / np.maximum(alpha, 1e-6),
+                    np.inf)
+
+
+def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray,
+                      cameras: list[PinholeCamera], images: list[np.ndarray],
+                      floors: list[np.ndarray | None], weights: np.ndarray) -> np.ndarray:
+    """``(P,)`` luminance the photos measured at each surface point (module docstring):
+    the median over the views that see it face on and unoccluded, of its 3x3 pixel
+    block's mean, where no pixel of the block clipped; NaN where no view qualifies."""
+    readings = np.full((len(cameras), len(points)), np.nan)
+    for v, (cam, img, floor) in enumerate(zip(cameras, images, floors, strict=True)):
+        h, w = img.shape[:2]
+        cam_px = PinholeCamera(w, h, cam.fx * w / cam.width, cam.fy * h / cam.height,
+                               cam.cx * w / cam.width, cam.cy * h / cam.height, cam.R, cam.t)
+        uv, z = cam_px.project(points)
+        x, y = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
+        to_cam = cam.center[None] - points
+        facing = np.sum(normals * to_cam, 1) / np.linalg.norm(to_cam, axis=1)
+        ok = (z > 0) & (x >= 1) & (x < w - 1) & (y >= 1) & (y < h - 1) & (facing >= FACING)
+        if not ok.any():
+            continue
+        x, y = np.where(ok, x, 1), np.where(ok, y, 1)
+        depth = depth_map(scene, cam_px)
+        ok &= np.abs(depth[y, x] - z) <= DEPTH_AGREEMENT * z
+        if floor is not None:
+            ok &= ~ndimage.maximum_filter(floor > 0, size=3)[y, x]
+        block_mean = ndimage.uniform_filter((img @ weights).astype(np.float64), size=3)
+        readings[v, ok] = block_mean[y[ok], x[ok]]
+    out = np.full(len(points), np.nan)
+    seen = np.isfinite(readings).any(axis=0)
+    out[seen] = np.nanmedian(readings[:, seen], axis=0)
+    return out
 
 
 def pixel_directions(cam: PinholeCamera) -> tuple[np.ndarray, np.ndarray]:
@@ -232,11 +294,11 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
 
 def albedo_spread(log2_k: np.ndarray, radiance: np.ndarray, irr: np.ndarray,
                   trim: float = 0.1) -> float:
-    """Trimmed variance of the log-albedos for light factors ``2**log2_k``; infinite
-    when an albedo would exceed 1."""
+    """Trimmed variance of the log-albedos for light factors ``2**log2_k``; infinite when
+    more than a quarter of the albedos would exceed 1 (:data:`ALBEDO_QUANTILE`)."""
     total = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k)
     albedo = math.pi * radiance / np.maximum(total, 1e-12)
-    if np.quantile(albedo, 0.97) > 1.0:
+    if np.quantile(albedo, ALBEDO_QUANTILE) > 1.0:
         return math.inf
     la = np.log2(np.maximum(albedo, 1e-9))
     dev = np.abs(la - np.median(la))
@@ -263,71 +325,112 @@ def solve_factors(radiance: np.ndarray, irr: np.ndarray, grid_step: float = 0.12
     return k
 
 
-def infer_light_power(scene: SplatScene, cameras: list[PinholeCamera],
-                      floors: list[np.ndarray | None], weights: np.ndarray, extent: float,
-                      measured: int | None = None, seed: int = 0, bootstrap: int = 24
-                      ) -> tuple[SplatScene, list[LightPower]]:
-    """Rescale each clipped light's splats by the fused power factor (module docstring).
+def infer_light_power(scene: SplatScene, lights: list[LightPower],
+                      cameras: list[PinholeCamera], images: list[np.ndarray],
+                      floors: list[np.ndarray | None], weights: np.ndarray,
+                      surfaces: np.ndarray, opaque: np.ndarray, extent: float,
+                      seed: int = 0, bootstrap: int = 16) -> SplatScene:
+    """Weigh ``lights`` (clipped, compact: :func:`lights_to_weigh`) by the surfaces they
+    light and rescale their splats by the fused factor (module docstring).
 
-    ``extent``: the scene's size (lights are clusters linked within 2 % of it);
-    ``measured``: how many leading splats the fit made (the rest is backdrop).
-    Returns the rescaled scene and one :class:`LightPower` per light.
+    ``cameras``/``images``/``floors``: the training views (HDR, their clip floors);
+    ``surfaces``: (N,) splats that may be sampled as lit surfaces (measured, inside the
+    captured space, under the white, no light's); ``opaque``: (N,) splats a sample's
+    normal is fitted to; ``extent``: the scene's size (the gathering's offset off the
+    surface). Each light's ``factor``, ``source``, ``uncertainty_stops`` and ``details``
+    are set in place; returns the rescaled scene.
     """
-    mask = clipped_light_splats(scene, cameras, floors, weights)
-    groups = group_lights(scene, mask, 0.02 * extent)
-    if not groups:
-        return scene, []
+    lights = lights[:MAX_LIGHTS]
+    if not lights:
+        return scene
     rng = np.random.default_rng(seed)
     eye = np.mean([c.center for c in cameras], axis=0)
-    cand, normals = surface_samples(scene, mask, SAMPLE_POINTS, rng, eye,
-                                    measured if measured is not None else scene.count)
-    lights = [LightPower(position=scene.positions[g].mean(0), splats=g) for g in groups]
-    if len(cand) < 20:
+    cand, normals = surface_samples(scene, surfaces, opaque, SAMPLE_POINTS, rng, eye)
+    points = scene.positions[cand].astype(np.float64)
+    radiance = measured_radiance(scene, points, normals, cameras, images, floors, weights)
+    seen = np.isfinite(radiance) & (radiance > 0)
+    cand, normals, points, radiance = cand[seen], normals[seen], points[seen], radiance[seen]
+    if len(cand) < MIN_SAMPLES:
         for light in lights:
-            light.details["note"] = "too few lit surfaces to infer its power"
-        return scene, lights
+            light.details["note"] = (f"too few measured surfaces ({len(cand)}) to weigh it: "
+                                     "the uplift's power stands")
+        return scene
     offsets = 2.0 * scene.scales[cand].max(1) + 0.01 * extent
-    irr = gather_irradiance(scene, groups, scene.positions[cand].astype(np.float64), normals,
+    irr = gather_irradiance(scene, [light.splats for light in lights], points, normals,
                             offsets, weights)
-    radiance = scene.base_colours[cand] @ weights
-    useful = np.all(np.isfinite(irr), axis=1) & (irr[:, 0] + irr[:, 1:].sum(1) > 0) & \
-        (radiance > 0)
+    useful = np.all(np.isfinite(irr), axis=1) & (irr[:, 0] + irr[:, 1:].sum(1) > 0)
     radiance, irr = radiance[useful], irr[useful]
-    if len(radiance) < 20:
+    if len(radiance) < MIN_SAMPLES:
         for light in lights:
-            light.details["note"] = "too few lit surfaces to infer its power"
-        return scene, lights
+            light.details["note"] = (f"too few measured surfaces ({len(radiance)}) to weigh "
+                                     "it: the uplift's power stands")
+        return scene
     best = solve_factors(radiance, irr)
-    boots = []
-    for _ in range(bootstrap):
-        pick = rng.integers(0, len(radiance), len(radiance))
-        boots.append(solve_factors(radiance[pick], irr[pick], grid_step=0.25))
-    spread = np.std(np.asarray(boots), axis=0) if boots else np.full(len(groups), 9.0)
+    boots = [solve_factors(radiance[pick], irr[pick], grid_step=0.25)
+             for pick in (rng.integers(0, len(radiance), len(radiance))
+                          for _ in range(bootstrap))]
+    spread = np.std(np.asarray(boots), axis=0)
     out = scene.subset(np.arange(scene.count))
-    out.sh = scene.sh.copy()
     for j, light in enumerate(lights):
-        # judged at the solution: a light the fit left 5 stops short barely lights the
-        # surfaces as fitted, and that is what the factor corrects
-        lit = irr[:, 1:] * 2.0 ** best[None]
-        lit_share = float(np.median(lit[:, j] / np.maximum(irr[:, 0] + lit.sum(1), 1e-12)))
+        sigma_inf = math.hypot(float(spread[j]), SYSTEMATIC_STOPS)
+        lower = best.copy()
+        lower[j] -= 0.25
         light.details.update({"inferred_log2_factor": round(float(best[j]), 3),
-                              "median_direct_share": round(lit_share, 3),
-                              "surface_points": int(len(radiance))})
-        at_bound = not LOG2_K_RANGE[0] < best[j] < LOG2_K_RANGE[1]
-        if at_bound or lit_share < MIN_DIRECT_SHARE:
-            # the surfaces barely see this light (or the search ran off its range):
-            # its power is not identifiable from them; the fill stands
-            light.details["note"] = "lights too little of the measured surfaces to infer"
+                              "inferred_sigma_stops": round(sigma_inf, 3),
+                              "surface_points": int(len(radiance)),
+                              # the albedo cap, not the albedos' spread, decided: little
+                              # light but this one's reaches the surfaces, so the factor
+                              # is the least that keeps them matte (a lower bound)
+                              "lower_bound": not math.isfinite(
+                                  albedo_spread(lower, radiance, irr))})
+        if not LOG2_K_RANGE[0] < best[j] < LOG2_K_RANGE[1] or \
+                sigma_inf > MAX_INFERRED_SIGMA_STOPS:
+            light.details["note"] = ("its surfaces do not pin its power (the search ran off "
+                                     "its range, or resamples disagree by over "
+                                     f"{MAX_INFERRED_SIGMA_STOPS:g} stops): the uplift's "
+                                     "power stands")
             continue
-        sigma_inf = max(float(spread[j]), 0.1)
         w_inf, w_pred = 1 / sigma_inf ** 2, 1 / PREDICTOR_SIGMA_STOPS ** 2
-        log2_k = (w_inf * best[j]) / (w_inf + w_pred)
+        # the fill is what the fit holds the light at, over what the photos recorded: a
+        # lower bound, so the fused factor never takes the light under it
+        log2_k = max(0.0, (w_inf * best[j]) / (w_inf + w_pred))
         light.factor = float(2.0 ** log2_k)
         light.uncertainty_stops = float((w_inf + w_pred) ** -0.5)
         light.source = "inferred" if w_inf > 4 * w_pred else "fused"
-        light.details["inferred_sigma_stops"] = round(sigma_inf, 3)
         out.sh[light.splats] = scaled_sh(scene.sh[light.splats], light.factor)
-    return out, lights
+    return out
+
+
+def lights_to_weigh(scene: SplatScene, cameras: list[PinholeCamera], images: list[np.ndarray],
+                    floors: list[np.ndarray | None], weights: np.ndarray
+                    ) -> tuple[list[LightPower], list[LightPower], np.ndarray, np.ndarray]:
+    """The lights finder's lights (:func:`gaslight_usd.lights.search_lights`, so ``scene``
+    carries the fit's camera centres and sightings), split into those to weigh (clipped
+    in every view that frames them, compact) and the rest (each with a note saying why
+    not); plus the splats that may be sampled as surfaces and the opaque ones."""
+    from ..lights import search_lights
+
+    search = search_lights(scene)
+    white = search.white
+    size = COMPACT_SHARE * search.space.median_depth()
+    weigh, keep = [], []
+    for light in search.lights:
+        entry = LightPower(position=light.position, splats=light.splats, radius=light.radius)
+        if not light_is_clipped(light.position, cameras, images, floors, weights, white):
+            entry.source, entry.uncertainty_stops = "measured", 0.25
+            entry.details["note"] = "a view measured it over the white"
+            keep.append(entry)
+        elif not light.radius <= size:
+            entry.details["note"] = (f"wider than {COMPACT_SHARE:g} of the room's depth (a "
+                                     "window, a large panel): its broad light is not told "
+                                     "from the indirect light; the uplift's power stands")
+            keep.append(entry)
+        else:
+            weigh.append(entry)
+    radiance = scene.base_colours @ weights
+    opaque = ~search.backdrop & (scene.opacities > 0.5)
+    surfaces = opaque & ~search.emitters & (radiance < white)
+    return weigh, keep, surfaces, opaque
 
 
 def scaled_sh(sh: np.ndarray, factor: float) -> np.ndarray:

@@ -51,11 +51,11 @@ class FitConfig:
     log_weight: float = 0.0
     clip_bounds: bool = True
     """Fit clipped photo pixels as lower bounds (:func:`.losses.bounded_l1`), not as targets."""
-    infer_power: bool = False
-    """After the fit, rescale each clipped light by the power its lit surfaces imply
-    (:mod:`.power`), fused with the uplift's fill by their uncertainties. Off by default:
-    on the chain bench's rooms (``gaslight2usd bench --suite chain``) the clipped-light
-    clusters it weighs are not yet where the lights are (see the issue notes)."""
+    infer_power: bool = True
+    """After the fit, rescale each clipped compact light (a bulb, a small panel) by the power
+    the surfaces it lights imply, as the photos measured them (:mod:`.power`), fused with
+    the uplift's fill by their uncertainties; windows and lights a view measured keep their
+    power. ``gaslight2usd bench --suite chain`` measures it (power errors per light)."""
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
@@ -79,9 +79,13 @@ class FitConfig:
     """Adam step of the pose corrections' rotation (radians)."""
     lr_pose_translation: float = 2e-4
     """Adam step of their translation (fraction of the scene extent)."""
-    antialiased: bool = False
-    """Fit and draw with the opacity-compensated dilation (Mip-Splatting's 2D filter): small
-    bright splats then keep their power in coarser cameras (HDRIs, probes)."""
+    antialiased: bool = True
+    """Fit and draw with the opacity-compensated dilation (Mip-Splatting's 2D filter): a
+    light smaller than a fitting pixel keeps its power in any other camera (HDRIs, probes,
+    close-ups). Without it the plain dilation inflates sub-pixel splats in the training
+    views, the fit makes them dim to match, and drawn finer the light loses up to two stops
+    (``tests/test_fit.py``; the chain bench's 2.5 cm bulb at ``fast``, from true HDR views:
+    1.4 stops)."""
     checkpoint_every: int = 200
     background: float = 0.0
     """Radiance behind the splats (0: a closed set such as a room)."""
@@ -106,11 +110,10 @@ PRESETS: dict[str, FitConfig] = {
                       lr_means=4e-4, lr_colour=2e-2, lr_opacity=5e-2, checkpoint_every=100,
                       random_background=0.5),
     "balanced": FitConfig(working_size=240, iterations=2500, budget=100_000, init_points=20_000,
-                          max_sh_degree=2, sh_raise_every=600, antialiased=True,
-                          random_background=0.5),
+                          max_sh_degree=2, sh_raise_every=600, random_background=0.5),
     "best": FitConfig(working_size=2048, iterations=6000, budget=300_000, init_points=40_000,
                       max_sh_degree=3, sh_raise_every=1000, densify_until=0.5,
-                      checkpoint_every=500, antialiased=True, random_background=0.5),
+                      checkpoint_every=500, random_background=0.5),
 }
 
 

@@ -54,7 +54,7 @@ from .init import initial_points, neighbour_scales
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .pose_refine import PoseRefiner
-from .power import infer_light_power
+from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
 from .single_view import single_view_lights
 from .triangulate import triangulate_views
@@ -419,6 +419,29 @@ class Trainer:
         return sight_lights(self.data.cameras, self.data.images, white,
                             self.y_weights.cpu().numpy()).as_dict()
 
+    def _weigh_clipped_lights(self, scene: SplatScene, backdrop: int,
+                              floors: list[np.ndarray | None]
+                              ) -> tuple[SplatScene, list[LightPower]]:
+        """The clipped compact lights' power from the surfaces they light
+        (:mod:`.power`), judged on the training views; every light the finder keeps is
+        listed with where its power came from."""
+        cams = self.cameras()
+        views = [cams[i] for i in self.train]
+        images = [self.data.images[i] for i in self.train]
+        weights = self.y_weights.cpu().numpy()
+        probe = scene.subset(np.arange(scene.count))
+        # as the export's lights finder will see it: the views' white, the fit's backdrop
+        probe.metadata["exposure_scale"] = float(
+            self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
+        probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop}
+        weigh, keep, surfaces, opaque = lights_to_weigh(probe, views, images, floors, weights)
+        if weigh:
+            self.progress.message(f"weighing {len(weigh)} clipped light(s) by the surfaces "
+                                  "they light")
+            scene = infer_light_power(scene, weigh, views, images, floors, weights, surfaces,
+                                      opaque, self.extent, seed=self.seed)
+        return scene, weigh + keep
+
     def _pose_agreement(self) -> dict[str, Any] | None:
         """How the given poses agree with the photos (:mod:`gaslight_usd.poses.agreement`):
         the triangulation's matches, else the model's own observations; None when
@@ -442,14 +465,16 @@ class Trainer:
                                    y_weights=self.y_weights.cpu().numpy())
         if backdrop.count:
             scene = concatenate(scene, backdrop)
-        lights = []
+        # where the photos were taken and where they saw light over the white: the
+        # captured space, the default probe and the lights finder start there
+        scene.metadata = {**scene.metadata,
+                          "cameras": {"centres": [[round(float(v), 6) for v in c.center]
+                                                  for c in self.data.cameras]},
+                          "light_sightings": self._light_sightings()}
+        lights: list[LightPower] = []
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):
-            self.progress.message("inferring the clipped lights' power from the lit surfaces")
-            scene, lights = infer_light_power(
-                scene, [cams[i] for i in self.train], train_floors,
-                self.y_weights.cpu().numpy(), self.extent,
-                measured=scene.count - backdrop.count, seed=self.seed)
+            scene, lights = self._weigh_clipped_lights(scene, backdrop.count, train_floors)
         if (backdrop.count or lights) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
@@ -482,12 +507,6 @@ class Trainer:
                 [self.data.cameras[i] for i in self.train])
         if not self.held:
             metrics["note"] = "no held-out views (too few views): errors are on training views"
-        # where the photos were taken and where they saw light over the white: the
-        # captured space, the default probe and the lights finder start there
-        scene.metadata = {**scene.metadata,
-                          "cameras": {"centres": [[round(float(v), 6) for v in c.center]
-                                                  for c in self.data.cameras]},
-                          "light_sightings": self._light_sightings()}
         if self.checkpoint is not None:
             self.elapsed = seconds
             save_checkpoint(self.checkpoint, self._state())
