@@ -6,6 +6,7 @@ Options (step "fit"): :class:`FitOptions`.
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 from gaslight_usd.errors import InputError
@@ -39,6 +40,9 @@ class FitOptions:
     refine_poses: bool = False
     """Optimise the training views' poses too; the refined poses are written beside
     the output as a COLMAP text model (:func:`refined_poses_path`)."""
+    uplift_power: bool = False
+    """Leave clipped lights at the uplift's power (do not weigh them by the surfaces they
+    light, :mod:`gaslight_usd.fit.power`)."""
     working_size: int | None = None
     """The views' long side in the fit (default: the preset's; the bench's shortened fits)."""
     tolerance_stops: float | None = None
@@ -93,7 +97,8 @@ def fit(ctx: StageContext) -> StageResult:
         raise InputError(f"unknown fit preset {name!r}; choose from {', '.join(PRESETS)}")
     cfg = preset(name).updated(budget=opts.budget, iterations=opts.iterations,
                                working_size=opts.working_size,
-                               refine_poses=bool(opts.refine_poses))
+                               refine_poses=bool(opts.refine_poses),
+                               infer_power=False if opts.uplift_power else None)
     seed = int(opts.seed if opts.seed is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
     data = load_fit_data(hdr_dir, poses, working_size=cfg.working_size)
@@ -149,6 +154,18 @@ def fit(ctx: StageContext) -> StageResult:
             f"warning: a light ({light['power_share']:.0%} of the bright splats' power, near "
             f"{where}) {framed}: its place and size are guesses (a light needs two photos "
             "from different places to be put in depth)")
+    for light in result.metrics.get("clipped_lights") or []:
+        where = ", ".join(f"{v:.2f}" for v in light["position"])
+        if light["power_source"] in ("inferred", "fused"):
+            ctx.progress.message(
+                f"a clipped light at ({where}) weighed by the surfaces it lights: "
+                f"{math.log2(light['factor']):+.1f} stops over the uplift's guess "
+                f"(+-{light['power_uncertainty_stops']:.1f} stops"
+                + (", a lower bound" if light.get("lower_bound") else "") + ")")
+        elif light["power_source"] == "predicted":
+            ctx.progress.message(
+                f"warning: a clipped light at ({where}) keeps the uplift's guess of its power "
+                f"({light.get('note', 'not weighed')}); one photo exposed for it measures it")
     for light in result.metrics.get("cut_lights") or []:
         ctx.progress.message(f"warning: {light['warning']}")
     agreement = result.metrics.get("pose_agreement") or {}

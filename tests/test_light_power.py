@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
+import pytest
+from conftest import needs_example
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
@@ -187,3 +190,32 @@ def test_a_lamp_left_nine_stops_short_is_still_weighed_by_the_floor_it_lights():
     assert light.details["lower_bound"]
     assert 9.0 - 1.25 <= light.details["inferred_log2_factor"] <= 9.0 + 0.25
     assert light.source == "inferred" and math.log2(light.factor) >= 9.0 - 1.5
+
+
+@pytest.mark.slow
+@needs_example
+def test_the_examples_lamp_is_weighed_from_its_photos(tmp_path):
+    """The bundled example's photos clip its lamp, and the uplift leaves it about 6.5 stops
+    short (``gaslight2usd bench --suite chain``); the fit weighs it by the surfaces it lights
+    and puts it within two stops, says where that came from, and leaves the window (a
+    broad light) at the uplift's power. ``--uplift-power`` turns it off."""
+    from gaslight_usd.cli.main import main
+    from gaslight_usd.locate import example_room
+    from gaslight_usd.ply import read_ply
+
+    example = example_room()
+    lamp = np.array(json.loads((example / "scene.json").read_text())["lamp"]["center"])
+    assert main(["hdr", str(example / "photos"), "-o", str(tmp_path / "hdr"), "-q"]) == 0
+    for flags, name in (([], "weighed.ply"), (["--uplift-power"], "uplift.ply")):
+        assert main(["fit", str(tmp_path / "hdr"), "--poses", str(example / "sparse" / "0"),
+                     "-o", str(tmp_path / name), "-q", *flags]) == 0
+    weighed = read_ply(tmp_path / "weighed.ply").metadata["fit_metrics"]["clipped_lights"]
+    at_lamp = [li for li in weighed if np.linalg.norm(np.array(li["position"]) - lamp) < 0.1]
+    assert len(at_lamp) == 1 and at_lamp[0]["power_source"] in ("inferred", "fused")
+    assert 4.5 <= math.log2(at_lamp[0]["factor"]) <= 8.5
+    assert at_lamp[0]["power_uncertainty_stops"] < 1.5
+    others = [li for li in weighed if li is not at_lamp[0]]
+    assert all(li["factor"] == 1.0 and "note" in li for li in others)
+    plain = read_ply(tmp_path / "uplift.ply").metadata
+    assert plain["provenance"]["config"]["infer_power"] is False
+    assert plain["fit_metrics"]["clipped_lights"] == []

@@ -57,6 +57,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also optimise small corrections to the training views' poses "
                         "(for SfM poses; the refined poses are written beside the PLY as "
                         "SPLATS.refined-poses/, a COLMAP text model)")
+    p.add_argument("--uplift-power", action="store_true",
+                   help="leave lights every photo clipped at the uplift's guess of their "
+                        "power (by default a compact one, a bulb or a small panel, is weighed "
+                        "by the surfaces it lights, as the photos measured them)")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint an interrupted fit left")
     add_common(p)
@@ -70,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     out = args.output
     options = {"preset": args.preset, "budget": args.budget, "iterations": args.iterations,
                "device": args.device, "seed": args.seed, "resume": args.resume,
-               "refine_poses": args.refine_poses}
+               "refine_poses": args.refine_poses, "uplift_power": args.uplift_power}
     runner = ChainRun(out.parent if str(out.parent) else Path("."),
                       settings_from(args, device=args.device, seed=args.seed),
                       default_registry(), progress_from(args))

@@ -104,6 +104,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--refine-poses", action="store_true",
                    help="optimise small corrections to the training views' poses while "
                         "fitting (worth it with SfM poses; written to OUT/splats.refined-poses/)")
+    p.add_argument("--uplift-power", action="store_true",
+                   help="leave lights every photo clipped at the uplift's guess of their "
+                        "power (by default a compact one, a bulb or a small panel, is weighed "
+                        "by the surfaces it lights, as the photos measured them)")
     p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: where the cameras stood, at their median height, moved "
@@ -149,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
             "fit": {"preset": args.preset, "budget": args.budget, "device": args.device,
                     "iterations": args.iterations,
                     "seed": args.seed, "refine_poses": args.refine_poses or None,
+                    "uplift_power": args.uplift_power or None,
                     "tolerance_stops": args.tolerance_stops},
             "export": {"as": list(args.export_as) if args.export_as else None,
                        "default_variant": args.default_variant},
