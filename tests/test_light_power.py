@@ -14,6 +14,7 @@ from gaslight_usd.colour import REC709_Y
 from gaslight_usd.fit.power import (
     LightPower,
     aimed_camera,
+    clipped_extent,
     gather_irradiance,
     infer_light_power,
     light_is_clipped,
@@ -159,6 +160,20 @@ def test_a_lamp_the_fit_got_right_is_left_alone():
     _, out, light = _weigh(1.0)
     assert abs(light.details["inferred_log2_factor"]) <= 0.75
     assert math.log2(light.factor) <= 0.75
+
+
+def test_a_light_inside_a_wide_clipped_region_is_part_of_a_wide_source():
+    """A fit may cut a window into lights of its own; the photos' clipped region around a
+    light says how wide its source is (the second smallest view's reading)."""
+    scene, cams, _, floors, light, _, _ = _photos(16.0)
+    small = clipped_extent(light.position, cams, floors)
+    assert 0.0 < small < 0.3  # the lamp's 3x3-pixel blobs, about 2.3 m away
+    wide = [f.copy() for f in floors]
+    for f in wide[:2]:
+        f[:, 16:48] = 10.0  # two views see it inside a clipped region half the frame wide
+    assert clipped_extent(light.position, cams, wide) > 1.0
+    wide[1] = floors[1]  # one view alone does not make it wide
+    assert clipped_extent(light.position, cams, wide) < 0.3
 
 
 def test_a_lamp_some_photo_measured_is_not_weighed():

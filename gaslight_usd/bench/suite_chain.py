@@ -8,7 +8,8 @@ a ``room`` draw's 24 photos at 480 x 360). For every scene the chain runs from i
 photos with the true poses (so the uplift and the fit are measured, not SfM), once per method:
 
 * ``truth HDR`` -- the fit from the true HDR views: the ceiling of what the fit can do;
-* ``clipped photos`` -- the photos linearised, clipped lights left clipped: the floor;
+* ``clipped photos`` -- the photos linearised, clipped lights left clipped (and not
+  weighed by the surfaces they light): the floor;
 * ``recursive`` -- GaSLight's recursive uplift (fast predictor), clipped pixels fitted
   as bounds (:func:`gaslight_usd.fit.losses.bounded_l1`);
 * ``recursive, fills as targets`` -- the same uplift, its fills fitted like measurements
@@ -318,8 +319,8 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     cfg = preset(preset_name)
     if method == "recursive, fills as targets":
         cfg = cfg.updated(clip_bounds=False)
-    if method == "recursive, uplift's power":
-        cfg = cfg.updated(infer_power=False)
+    if method in ("recursive, uplift's power", "clipped photos"):
+        cfg = cfg.updated(infer_power=False)  # the floor: the photos as they are
     data = load_fit_data(hdr, folder / "sparse" / "0", working_size=cfg.working_size)
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])

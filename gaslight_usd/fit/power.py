@@ -75,9 +75,10 @@ SYSTEMATIC_STOPS = 0.5
 irradiance, the photos' blur across neighbouring albedos), added in quadrature to the
 bootstrap spread: on ``tests/test_light_power.py``'s floor, a lamp 4 stops short is
 inferred at 3.5 with a bootstrap spread of under 0.1."""
-COMPACT_SHARE = 0.1
-"""A light is weighed only when its radius is at most this share of the captured space's
-median depth (a bulb, a shade, a small panel; not a window)."""
+COMPACT_SHARE = 0.15
+"""A light is weighed only when its radius, and that of the clipped region the photos saw
+it in (:func:`clipped_extent`), is at most this share of the captured space's median
+depth (a bulb, a shade, a 0.4 m panel in a 2.5 m room; not a window)."""
 CUBE_SIZE = 12
 LIGHT_VIEW_SIZE = 24
 SAMPLE_POINTS = 400
@@ -140,6 +141,39 @@ def light_is_clipped(position: np.ndarray, cameras: list[PinholeCamera],
         if not clipped and float((img[block] @ weights).max()) > 2.0 * white:
             return False
     return True
+
+
+def clipped_extent(position: np.ndarray, cameras: list[PinholeCamera],
+                   floors: list[np.ndarray | None]) -> float:
+    """Radius (scene units) of the clipped region a light at ``position`` lies in, as the
+    views that frame it see it: the region's pixel area at the light's distance, as a disc.
+
+    A fit may cut one bright region into several lights (a window's corner fitted as a
+    light of its own, 0.17 m across in a 1.2 m window); the photos' clipped region says
+    how large the source it belongs to is. One view may merge the light with another
+    clipped source behind it (a shaded lamp seen against the window: 0.7 m where two other
+    views saw 0.12), another may foreshorten or crop it, so the second smallest reading
+    counts (the only one when one view frames it). 0 where no view has it on a clipped
+    pixel.
+    """
+    readings = []
+    for cam, floor in zip(cameras, floors, strict=True):
+        if floor is None:
+            continue
+        h, w = floor.shape
+        uv, z = cam.project(np.asarray(position, np.float64)[None])
+        x, y = int(uv[0, 0] * w / cam.width), int(uv[0, 1] * h / cam.height)
+        if not (z[0] > 0 and 0 <= x < w and 0 <= y < h):
+            continue
+        labels, _ = ndimage.label(floor > 0, structure=np.ones((3, 3)))
+        near = labels[max(0, y - 1):y + 2, max(0, x - 1):x + 2]
+        if not near.any():
+            continue
+        area_px = int(np.isin(labels, near[near > 0]).sum())
+        pixel = z[0] * cam.width / (w * cam.fx)  # one fitting pixel's width at the light
+        readings.append(math.sqrt(area_px / math.pi) * pixel)
+    readings.sort()
+    return readings[1] if len(readings) > 1 else (readings[0] if readings else 0.0)
 
 
 def surface_samples(scene: SplatScene, candidates: np.ndarray, opaque: np.ndarray, count: int,
@@ -420,10 +454,11 @@ def lights_to_weigh(scene: SplatScene, cameras: list[PinholeCamera], images: lis
             entry.source, entry.uncertainty_stops = "measured", 0.25
             entry.details["note"] = "a view measured it over the white"
             keep.append(entry)
-        elif not light.radius <= size:
-            entry.details["note"] = (f"wider than {COMPACT_SHARE:g} of the room's depth (a "
-                                     "window, a large panel): its broad light is not told "
-                                     "from the indirect light; the uplift's power stands")
+        elif not max(light.radius, clipped_extent(light.position, cameras, floors)) <= size:
+            entry.details["note"] = (f"wider than {COMPACT_SHARE:g} of the room's depth, or "
+                                     "part of a clipped region that is (a window, a large "
+                                     "panel): its broad light is not told from the "
+                                     "indirect light; the uplift's power stands")
             keep.append(entry)
         else:
             weigh.append(entry)
