@@ -215,7 +215,8 @@ def fit(ctx: StageContext) -> StageResult:
         metrics={k: m[k] for k in ("held_out_log_lum_rmse_stops", "held_out_pu21_psnr",
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
                                    "backdrop_splats", "exposure_outliers",
-                                   "single_view_lights", "pose_agreement", "cut_lights")},
+                                   "single_view_lights", "pose_agreement", "cut_lights",
+                                   "clipped_lights")},
     )
 
 
