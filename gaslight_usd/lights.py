@@ -53,6 +53,10 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    a light (a bright patch the fit made where every photo saw a plain wall), and a
    light two photos frame whole from far enough apart is moved, as a whole, to where
    its outlines' rays meet (a flat light's depth is what its splats cannot fix).
+7. **Where its power came from**: by the HDR method (merged brackets measure it, an
+   uplift predicts it), unless the fit weighed the light by the surfaces it lights
+   (:mod:`gaslight_usd.fit.power`, the splats' ``fit_metrics.clipped_lights``): then
+   "inferred" or "fused", with the fit's uncertainty.
 
 ``gaslight2usd bench --suite usd`` times the export that runs this;
 ``tests/test_lights.py`` checks it on a room with a lamp, a window, lit walls
