@@ -61,6 +61,7 @@ from ..cameras import PinholeCamera
 from ..render import SplatParams, render
 from ..render.envmap import cube_face_cameras, render_cube
 from ..splats import SplatScene, rgb_to_sh_dc, sh_dc_to_rgb
+from .data import scale_camera_to
 
 PREDICTOR_SIGMA_STOPS = 3.0
 """How far the uplift's fill of a clipped light may be off (stops, 1 sigma): the fast
@@ -223,8 +224,7 @@ def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray
     readings = np.full((len(cameras), len(points)), np.nan)
     for v, (cam, img, floor) in enumerate(zip(cameras, images, floors, strict=True)):
         h, w = img.shape[:2]
-        cam_px = PinholeCamera(w, h, cam.fx * w / cam.width, cam.fy * h / cam.height,
-                               cam.cx * w / cam.width, cam.cy * h / cam.height, cam.R, cam.t)
+        cam_px = scale_camera_to(cam, w, h)
         uv, z = cam_px.project(points)
         x, y = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
         to_cam = cam.center[None] - points
@@ -405,8 +405,7 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
              for pick in (rng.integers(0, len(radiance), len(radiance))
                           for _ in range(bootstrap))]
     # half the central 68 % of the resamples' factors: a few resamples that run off to the
-    # search's ends inflate a standard deviation (16 resamples of the same points gave 0.95
-    # to 1.75 stops on the example's SfM fit)
+    # search's ends inflate a standard deviation (docs/measurements.md, session 14)
     spread = np.diff(np.quantile(np.asarray(boots), [0.16, 0.84], axis=0), axis=0)[0] / 2.0
     out = scene.subset(np.arange(scene.count))
     for j, light in enumerate(lights):

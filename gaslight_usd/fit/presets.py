@@ -83,9 +83,8 @@ class FitConfig:
     """Fit and draw with the opacity-compensated dilation (Mip-Splatting's 2D filter): a
     light smaller than a fitting pixel keeps its power in any other camera (HDRIs, probes,
     close-ups). Without it the plain dilation inflates sub-pixel splats in the training
-    views, the fit makes them dim to match, and drawn finer the light loses up to two stops
-    (``tests/test_fit.py``; the chain bench's 2.5 cm bulb at ``fast``, from true HDR views:
-    1.4 stops)."""
+    views, the fit makes them dim to match, and drawn finer the light loses power
+    (``tests/test_fit.py``; ``gaslight2usd bench --suite chain --scene bulb``)."""
     checkpoint_every: int = 200
     background: float = 0.0
     """Radiance behind the splats (0: a closed set such as a room)."""
