@@ -19,6 +19,7 @@ from gaslight_usd.fit.power import (
     infer_light_power,
     light_is_clipped,
     scaled_sh,
+    solve_factors,
 )
 from gaslight_usd.render import render
 from gaslight_usd.splats import SplatScene
@@ -153,6 +154,44 @@ def test_the_photos_not_the_splats_colours_say_what_the_surfaces_reflect():
     """Shuffled floor splat colours leave the photos (and the answer) as they were; the
     splats' colours alone would say nothing (a uniform random texture, no lamp in it)."""
     _, _, light = _weigh(16.0, scramble=True)
+    assert abs(light.details["inferred_log2_factor"] - 4.0) <= 0.75
+
+
+def test_surfaces_clipped_under_the_lamp_are_bounds_not_left_out():
+    """Near a clipped lamp the photos clip the surfaces it lights brightest too. Left out,
+    they select the darker ones, whose albedos only look like the rest's at a lower
+    factor; as bounds ("at least the white") they keep the factor where it is."""
+    rng = np.random.default_rng(3)
+    n = 300
+    rest = rng.uniform(0.2, 1.0, n)  # irradiance from everything but the lamp
+    lamp = rest * rng.lognormal(0.0, 1.5, n) * 0.02  # the lamp as fitted: 6 stops short
+    albedo = np.exp(rng.normal(np.log(0.3), 0.5, n))  # a textured surface
+    radiance = albedo / math.pi * (rest + 64.0 * lamp)
+    white = float(np.quantile(radiance, 0.7))
+    clipped = radiance > white
+    measured = np.where(clipped, np.nan, radiance)
+    bound = np.where(clipped, white, np.nan)
+    irr = np.stack([rest, lamp], 1)
+    with_bounds = solve_factors(measured, bound, irr)[0]
+    left_out = solve_factors(measured[~clipped], bound[~clipped], irr[~clipped])[0]
+    assert abs(with_bounds - 6.0) <= 0.25
+    assert left_out <= 6.0 - 0.75  # the bias the bounds remove
+
+
+def test_a_lamp_whose_floor_clips_is_weighed_through_the_bounds():
+    """The synthetic room with every pixel over a white clipped (a quarter of the sampled
+    floor points, those the lamp lights most): they count as bounds, and the factor stays
+    within 3/4 stop."""
+    scene, cams, images, floors, light, surfaces, opaque = _photos(16.0)
+    lum = np.concatenate([(img @ Y709).ravel() for img in images])
+    white = float(np.quantile(lum[lum < 5.0], 0.9))
+    for img, f in zip(images, floors, strict=True):
+        over = (img @ Y709) > white
+        f[over] = np.maximum(f[over], white)
+        img[over] *= (white / (img[over] @ Y709))[:, None]
+    infer_light_power(scene, [light], cams, images, floors, Y709, surfaces, opaque,
+                      extent=4.0, seed=1)
+    assert light.details["clipped_surface_points"] >= 20
     assert abs(light.details["inferred_log2_factor"] - 4.0) <= 0.75
 
 

@@ -56,6 +56,8 @@ import numpy as np
 import torch
 from scipy import ndimage
 from scipy.spatial import cKDTree
+from scipy.special import expit
+from scipy.stats import norm
 
 from ..cameras import PinholeCamera
 from ..render import SplatParams, render
@@ -101,6 +103,13 @@ ALBEDO_QUANTILE = 0.75
 """This share of the sampled albedos must stay at or under 1 for a factor to be possible
 (a matte surface reflects at most what reaches it)."""
 MIN_SAMPLES = 20
+MIN_SIGMA = 0.02
+"""Least spread of the log2-albedos a fit may claim (stops)."""
+FALSE_BOUND_SHARE = 0.05
+"""Prior share of the clipped surface points whose bound is false (the pixel clipped
+for a light in front of the surface): :func:`censored_fit`."""
+GENUINE_LOGIT = math.log1p(-FALSE_BOUND_SHARE) - math.log(FALSE_BOUND_SHARE)
+"""Least spread of the log2-albedos a fit may claim (stops)."""
 
 
 @dataclass
@@ -217,11 +226,19 @@ def depth_map(scene: SplatScene, camera: PinholeCamera) -> np.ndarray:
 
 def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray,
                       cameras: list[PinholeCamera], images: list[np.ndarray],
-                      floors: list[np.ndarray | None], weights: np.ndarray) -> np.ndarray:
-    """``(P,)`` luminance the photos measured at each surface point (module docstring):
-    the median over the views that see it face on and unoccluded, of its 3x3 pixel
-    block's mean, where no pixel of the block clipped; NaN where no view qualifies."""
+                      floors: list[np.ndarray | None], weights: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """``(P,)`` luminance the photos measured at each surface point (module docstring),
+    and ``(P,)`` a lower bound where they only clipped it.
+
+    A view reads a point it sees face on and unoccluded: the mean of its 3x3 pixel block
+    where no pixel of the block clipped (a measurement), else a bound on that mean (its
+    clipped pixels at their clip floors, the rest as measured). The measurement is the
+    median over the views that measured the point; the bound, for points no view
+    measured, the median of the views' bounds. NaN where no view qualifies (or, for the
+    bound, where a view measured the point)."""
     readings = np.full((len(cameras), len(points)), np.nan)
+    bounds = np.full((len(cameras), len(points)), np.nan)
     for v, (cam, img, floor) in enumerate(zip(cameras, images, floors, strict=True)):
         h, w = img.shape[:2]
         cam_px = scale_camera_to(cam, w, h)
@@ -235,14 +252,23 @@ def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray
         x, y = np.where(ok, x, 1), np.where(ok, y, 1)
         depth = depth_map(scene, cam_px)
         ok &= np.abs(depth[y, x] - z) <= DEPTH_AGREEMENT * z
+        lum = (img @ weights).astype(np.float64)
+        measured = ok
         if floor is not None:
-            ok &= ~ndimage.maximum_filter(floor > 0, size=3)[y, x]
-        block_mean = ndimage.uniform_filter((img @ weights).astype(np.float64), size=3)
-        readings[v, ok] = block_mean[y[ok], x[ok]]
+            clipped = ok & ndimage.maximum_filter(floor > 0, size=3)[y, x]
+            # the block's mean is at least its measured pixels' and its clip floors' mean
+            recorded = ndimage.uniform_filter(np.where(floor > 0, floor, lum), size=3)
+            bounds[v, clipped] = recorded[y[clipped], x[clipped]]
+            measured = ok & ~clipped
+        block_mean = ndimage.uniform_filter(lum, size=3)
+        readings[v, measured] = block_mean[y[measured], x[measured]]
     out = np.full(len(points), np.nan)
     seen = np.isfinite(readings).any(axis=0)
     out[seen] = np.nanmedian(readings[:, seen], axis=0)
-    return out
+    bound = np.full(len(points), np.nan)
+    only_clipped = ~seen & np.isfinite(bounds).any(axis=0)
+    bound[only_clipped] = np.nanmedian(bounds[:, only_clipped], axis=0)
+    return out, bound
 
 
 def pixel_directions(cam: PinholeCamera) -> tuple[np.ndarray, np.ndarray]:
@@ -327,37 +353,93 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
     return out
 
 
-def albedo_spread(log2_k: np.ndarray, radiance: np.ndarray, irr: np.ndarray,
-                  trim: float = 0.1) -> float:
-    """Trimmed variance of the log-albedos for light factors ``2**log2_k``; infinite when
-    more than a quarter of the albedos would exceed 1 (:data:`ALBEDO_QUANTILE`)."""
-    total = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k)
-    albedo = math.pi * radiance / np.maximum(total, 1e-12)
-    if np.quantile(albedo, ALBEDO_QUANTILE) > 1.0:
-        return math.inf
-    la = np.log2(np.maximum(albedo, 1e-9))
-    dev = np.abs(la - np.median(la))
-    keep = dev <= np.quantile(dev, 1.0 - trim)
-    return float(np.var(la[keep]))
+def censored_fit(y: np.ndarray, c: np.ndarray, iterations: int = 25
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean, standard deviation and the score per point's share of the log-likelihood,
+    per row of ``(G, P)`` normal samples some of which are only known to be at least
+    ``c`` (right-censored; ``y`` NaN there, ``c`` NaN where ``y`` is known).
+
+    Expectation-maximisation with the truncated normal's moments. A bound may be false
+    (a surface seen through a clipped light in front of it): each is genuine with prior
+    ``1 -`` :data:`FALSE_BOUND_SHARE`, else it says nothing, so no one bound can outweigh
+    the measured points. Returns ``(mu, sigma, nll)`` with ``nll`` the mean negative
+    log-likelihood over the points."""
+    known = np.isfinite(y)
+    cens = np.isfinite(c)
+    yk = np.where(known, y, 0.0)
+    cc = np.where(cens, c, 0.0)
+    n_known = np.maximum(known.sum(1), 1)
+    mu = yk.sum(1) / n_known
+    sigma = np.sqrt(np.maximum((((yk - mu[:, None]) ** 2) * known).sum(1) / n_known,
+                               MIN_SIGMA ** 2))
+    for _ in range(iterations if cens.any() else 1):
+        a = (cc - mu[:, None]) / sigma[:, None]
+        log_sf = norm.logsf(a)
+        genuine = np.where(cens, expit(log_sf + GENUINE_LOGIT), 0.0)
+        lam = np.exp(norm.logpdf(a) - log_sf)
+        e1 = mu[:, None] + sigma[:, None] * lam
+        e2 = sigma[:, None] ** 2 * np.maximum(1.0 + a * lam - lam ** 2, 0.0) + e1 ** 2
+        n = known.sum(1) + genuine.sum(1)
+        mu = (yk.sum(1) + (genuine * e1).sum(1)) / n
+        second = ((yk ** 2) * known).sum(1) + (genuine * e2).sum(1)
+        sigma = np.sqrt(np.maximum(second / n - mu ** 2, MIN_SIGMA ** 2))
+    z = (yk - mu[:, None]) / sigma[:, None]
+    nll = (np.where(known, np.log(sigma[:, None]) + 0.5 * z ** 2, 0.0).sum(1)
+           - np.where(cens, np.logaddexp(
+               math.log1p(-FALSE_BOUND_SHARE) + norm.logsf((cc - mu[:, None]) / sigma[:, None]),
+               math.log(FALSE_BOUND_SHARE)), 0.0).sum(1))
+    return mu, sigma, nll / np.maximum((known | cens).sum(1), 1)
 
 
-def solve_factors(radiance: np.ndarray, irr: np.ndarray, grid_step: float = 0.125
-                  ) -> np.ndarray:
-    """``log2 k`` per light minimising :func:`albedo_spread` (coordinate grid search)."""
+def albedo_scores(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
+                  trim: float = 0.1) -> np.ndarray:
+    """How unlikely the log-albedos are, per row of irradiance ``totals`` ``(G, P)`` (one
+    row per trial factor): the negative log-likelihood per point of a normal fitted to
+    them, points the photos only clipped (``bound``) counting as at least their bound
+    (:func:`censored_fit`), the ``trim`` share of the measured points farthest from
+    their median left out (a bound is never an outlier: it only says "at least").
+    With no clipped point it is the log of the spread (least variance, as before).
+    Infinite where over a quarter of the albedos would exceed 1 (:data:`ALBEDO_QUANTILE`).
+
+    Leaving clipped points out would select on brightness: near a clipped lamp, the
+    surfaces it lights brightest clip, the darker ones stay, and the factor that makes
+    them look like the rest falls short (1.2 stops on a ``balanced`` fit of ``room:11``,
+    ``docs/measurements.md``)."""
+    totals = np.maximum(np.atleast_2d(totals), 1e-12)
+    known = np.isfinite(radiance)
+    y = np.where(known, np.log2(math.pi * np.where(known, radiance, 1.0) / totals), np.nan)
+    cens = np.isfinite(bound)
+    c = np.where(cens, np.log2(math.pi * np.where(cens, bound, 1.0) / totals), np.nan)
+    over = ((y > 0) | (c > 0)).sum(1) > (1.0 - ALBEDO_QUANTILE) * (known | cens).sum()
+    ref = np.nanmedian(y, axis=1, keepdims=True)
+    dev = np.abs(y - ref)
+    keep = cens | (dev <= np.nanquantile(dev, 1.0 - trim, axis=1, keepdims=True))
+    y, c = np.where(keep, y, np.nan), np.where(keep, c, np.nan)
+    nll = censored_fit(y, c)[2]
+    return np.where(over, np.inf, nll)
+
+
+def solve_factors(radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray,
+                  grid_step: float = 0.125) -> np.ndarray:
+    """``log2 k`` per light minimising :func:`albedo_scores` (coordinate grid search)."""
     lights = irr.shape[1] - 1
     k = np.zeros(lights)
     grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
     for _ in range(3 if lights > 1 else 1):
         for j in range(lights):
-            scores = []
-            for g in grid:
-                trial = k.copy()
-                trial[j] = g
-                scores.append(albedo_spread(trial, radiance, irr))
-            scores = np.asarray(scores)
+            others = irr[:, 0] + irr[:, 1:] @ (2.0 ** k) - irr[:, 1 + j] * 2.0 ** k[j]
+            totals = others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j]
+            scores = albedo_scores(totals, radiance, bound)
             if np.isfinite(scores).any():
                 k[j] = grid[int(np.argmin(scores))]
     return k
+
+
+def feasible(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray
+             ) -> bool:
+    """Whether factors ``2**log2_k`` keep the albedos under the cap (:func:`albedo_scores`)."""
+    totals = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k)
+    return bool(np.isfinite(albedo_scores(totals[None], radiance, bound))[0])
 
 
 def infer_light_power(scene: SplatScene, lights: list[LightPower],
@@ -370,7 +452,7 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
 
     ``cameras``/``images``/``floors``: the training views (HDR, their clip floors);
     ``surfaces``: (N,) splats that may be sampled as lit surfaces (measured, inside the
-    captured space, under the white, no light's); ``opaque``: (N,) splats a sample's
+    captured space, no light's); ``opaque``: (N,) splats a sample's
     normal is fitted to; ``extent``: the scene's size (the gathering's offset off the
     surface). Each light's ``factor``, ``source``, ``uncertainty_stops`` and ``details``
     are set in place; returns the rescaled scene.
@@ -382,9 +464,11 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
     eye = np.mean([c.center for c in cameras], axis=0)
     cand, normals = surface_samples(scene, surfaces, opaque, SAMPLE_POINTS, rng, eye)
     points = scene.positions[cand].astype(np.float64)
-    radiance = measured_radiance(scene, points, normals, cameras, images, floors, weights)
-    seen = np.isfinite(radiance) & (radiance > 0)
-    cand, normals, points, radiance = cand[seen], normals[seen], points[seen], radiance[seen]
+    radiance, bound = measured_radiance(scene, points, normals, cameras, images, floors,
+                                        weights)
+    seen = (np.isfinite(radiance) & (radiance > 0)) | (np.isfinite(bound) & (bound > 0))
+    cand, normals, points = cand[seen], normals[seen], points[seen]
+    radiance, bound = radiance[seen], bound[seen]
     if len(cand) < MIN_SAMPLES:
         for light in lights:
             light.details["note"] = (f"too few measured surfaces ({len(cand)}) to weigh it: "
@@ -394,14 +478,14 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
     irr = gather_irradiance(scene, [light.splats for light in lights], points, normals,
                             offsets, weights)
     useful = np.all(np.isfinite(irr), axis=1) & (irr[:, 0] + irr[:, 1:].sum(1) > 0)
-    radiance, irr = radiance[useful], irr[useful]
-    if len(radiance) < MIN_SAMPLES:
+    radiance, bound, irr = radiance[useful], bound[useful], irr[useful]
+    if np.isfinite(radiance).sum() < MIN_SAMPLES:
         for light in lights:
             light.details["note"] = (f"too few measured surfaces ({len(radiance)}) to weigh "
                                      "it: the uplift's power stands")
         return scene
-    best = solve_factors(radiance, irr)
-    boots = [solve_factors(radiance[pick], irr[pick], grid_step=0.25)
+    best = solve_factors(radiance, bound, irr)
+    boots = [solve_factors(radiance[pick], bound[pick], irr[pick], grid_step=0.25)
              for pick in (rng.integers(0, len(radiance), len(radiance))
                           for _ in range(bootstrap))]
     # half the central 68 % of the resamples' factors: a few resamples that run off to the
@@ -414,12 +498,12 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
         lower[j] -= 0.25
         light.details.update({"inferred_log2_factor": round(float(best[j]), 3),
                               "inferred_sigma_stops": round(sigma_inf, 3),
-                              "surface_points": int(len(radiance)),
+                              "surface_points": int(np.isfinite(radiance).sum()),
+                              "clipped_surface_points": int(np.isfinite(bound).sum()),
                               # the albedo cap, not the albedos' spread, decided: little
                               # light but this one's reaches the surfaces, so the factor
                               # is the least that keeps them matte (a lower bound)
-                              "lower_bound": not math.isfinite(
-                                  albedo_spread(lower, radiance, irr))})
+                              "lower_bound": not feasible(lower, radiance, bound, irr)})
         if not LOG2_K_RANGE[0] < best[j] < LOG2_K_RANGE[1] or \
                 sigma_inf > MAX_INFERRED_SIGMA_STOPS:
             light.details["note"] = ("its surfaces do not pin its power (the search ran off "
@@ -465,9 +549,10 @@ def lights_to_weigh(scene: SplatScene, cameras: list[PinholeCamera], images: lis
             keep.append(entry)
         else:
             weigh.append(entry)
-    radiance = scene.base_colours @ weights
     opaque = ~search.backdrop & (scene.opacities > 0.5)
-    surfaces = opaque & ~search.emitters & (radiance < white)
+    # bright surfaces too: the photos clipped the ones a lamp lights most, and they count
+    # as bounds (:func:`albedo_scores`); leaving them out biases the factor low
+    surfaces = opaque & ~search.emitters
     return weigh, keep, surfaces, opaque
 
 
