@@ -79,7 +79,8 @@ MIN_CONE_DEG = 6.0
 
 
 def notes(options: dict[str, Any]) -> list[str]:
-    return [f"preset {options.get('preset_name') or 'fast'}; true poses; probe panoramas "
+    presets = ", ".join(options.get("presets") or ("fast",))
+    return [f"preset {presets}; true poses; probe panoramas "
             "scored in absolute radiance (EXIF exposure x the scene's camera constant K)"]
 
 
