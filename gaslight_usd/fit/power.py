@@ -18,13 +18,17 @@ overlap, and any one of them may be far brighter or darker than the surface the
 composite shows (on the example's ``fast`` fit, neighbouring ceiling splats read
 0.01 and 0.4). Each sample is looked up in the training views that see it face on
 and unoccluded (the fit's depth there agrees with the sample's), on pixels no
-photo clipped; the median over those views is ``L_s``.
+photo clipped; the median over those views is ``L_s``. A point every such view clipped
+is kept as a bound (``L_s`` at least its clip floors): near a clipped lamp the photos
+clip the surfaces it lights most, and leaving those out keeps the darker ones, whose
+albedos look even at too low a factor.
 
 Albedo varies with the surface's texture, but it does not know where the lamp is:
 with the right ``k`` the albedos ``pi L_s / (E_s + sum_j k_j D_js)`` do not depend
 on how much of a point's light comes from the lamp. So ``k`` is chosen to make the
-log-albedos as uniform as possible (least variance, trimmed of the 10 % worst
-points), subject to most albedos (three quarters) staying at or under 1. Where
+log-albedos as uniform as possible (the most likely normal spread of them, the bounds
+censored, trimmed of the 10 % worst measured points; with no bound, the least
+variance), subject to most albedos (three quarters) staying at or under 1. Where
 almost all the surfaces' light is this light's, the spread no longer depends on
 ``k`` and that cap decides: the factor is then a lower bound, and says so. The
 uncertainty (stops) is the spread of ``log2 k`` over bootstrap resamples of the
@@ -109,7 +113,7 @@ FALSE_BOUND_SHARE = 0.05
 """Prior share of the clipped surface points whose bound is false (the pixel clipped
 for a light in front of the surface): :func:`censored_fit`."""
 GENUINE_LOGIT = math.log1p(-FALSE_BOUND_SHARE) - math.log(FALSE_BOUND_SHARE)
-"""Least spread of the log2-albedos a fit may claim (stops)."""
+"""The prior log-odds that a bound is genuine."""
 
 
 @dataclass
@@ -355,9 +359,8 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
 
 def censored_fit(y: np.ndarray, c: np.ndarray, iterations: int = 25
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean, standard deviation and the score per point's share of the log-likelihood,
-    per row of ``(G, P)`` normal samples some of which are only known to be at least
-    ``c`` (right-censored; ``y`` NaN there, ``c`` NaN where ``y`` is known).
+    """A normal fitted to each row of ``(G, P)`` samples, some of them only known to be
+    at least ``c`` (right-censored; ``y`` NaN there, ``c`` NaN where ``y`` is known).
 
     Expectation-maximisation with the truncated normal's moments. A bound may be false
     (a surface seen through a clipped light in front of it): each is genuine with prior
@@ -397,7 +400,8 @@ def albedo_scores(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
     row per trial factor): the negative log-likelihood per point of a normal fitted to
     them, points the photos only clipped (``bound``) counting as at least their bound
     (:func:`censored_fit`), the ``trim`` share of the measured points farthest from
-    their median left out (a bound is never an outlier: it only says "at least").
+    their median left out (bounds are not trimmed: a false one is weighed down by
+    :data:`FALSE_BOUND_SHARE` instead).
     With no clipped point it is the log of the spread (least variance, as before).
     Infinite where over a quarter of the albedos would exceed 1 (:data:`ALBEDO_QUANTILE`).
 
