@@ -485,7 +485,8 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
     radiance, bound, irr = radiance[useful], bound[useful], irr[useful]
     if np.isfinite(radiance).sum() < MIN_SAMPLES:
         for light in lights:
-            light.details["note"] = (f"too few measured surfaces ({len(radiance)}) to weigh "
+            light.details["note"] = (f"too few measured surfaces "
+                                     f"({int(np.isfinite(radiance).sum())}) to weigh "
                                      "it: the uplift's power stands")
         return scene
     best = solve_factors(radiance, bound, irr)
