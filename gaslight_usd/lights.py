@@ -31,6 +31,12 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    predicted or inferred power). A wall lit by a lamp the uplift left short is
    still explained by that lamp, while a lamp fitted far above white (its fill
    not short) does not explain a window as bright as a tenth of it.
+   A cluster within :data:`OUTLINE_REACH` sizes of a light the photos' outlines
+   placed clipped in every view that frames it (the fit's ``light_seeds``,
+   :mod:`gaslight_usd.fit.light_seeds`) is an emitter without this test: a bare bulb
+   the uplift left a few times the white is "explained" by the clipped walls it
+   lights, whose own power the test must leave open, while the photos saw a small
+   light over the white wherever they framed that place.
 4. **Sunk emitters are moved onto the surface they are seen through.** A flat,
    featureless light fits at any depth along the rays that see it, so a fit
    leaves some of its splats behind the wall or ceiling it is set in. Seen from
@@ -145,6 +151,9 @@ white (step 6): the fit's depth smear keeps a true light's splats inside the con
 views that see it (all of its power on the chain bench's panels, the example's lamp and
 window), while a lit wall patch the fit pushed over the white lies where the photos saw
 under half the white (none of its power)."""
+OUTLINE_REACH = 2.0
+"""A cluster whose centre lies within this many of an outlined light's sizes is that
+light (step 3)."""
 GROUP_SHARE = 0.15
 """Emitter clusters closer than this share of the captured space's median depth (plus
 their own sizes) are one light (a window fitted as many patches)."""
@@ -287,6 +296,22 @@ def white_level(metadata: Mapping[str, Any]) -> float:
     except (TypeError, ValueError):
         scale = 1.0
     return scale if scale > 0 else 1.0
+
+
+def outlined_lights(metadata: Mapping[str, Any]) -> np.ndarray:
+    """(K, 4) position and size of the lights the fit's outlines placed clipped in every
+    view that frames them (``light_seeds`` whose views are all their framing views;
+    empty for older files)."""
+    rows = []
+    for seed in metadata.get("light_seeds") or []:
+        try:
+            pos = [float(v) for v in seed["position"]]
+            size, views, framed = float(seed["size"]), len(seed["views"]), int(seed["framed"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        if len(pos) == 3 and size > 0 and views >= framed:
+            rows.append([*pos, size])
+    return np.asarray(rows, np.float64).reshape(-1, 4)
 
 
 def _components(points: np.ndarray, reach: np.ndarray) -> np.ndarray:
@@ -480,9 +505,18 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
         return {"mean_radiance": level, "irradiance_max": e_max, "diffuse_limit": limit,
                 "headroom_stops": headroom}
 
+    outlined = outlined_lights(scene.metadata)
     for c in order:
         idx = candidates[labels == c]
         test = emitter_test(idx, positions[idx])
+        if test is None and len(outlined):
+            w = radiance[idx] * area[idx] + 1e-30
+            centre = (positions[idx] * w[:, None]).sum(0) / w.sum()
+            gap = np.linalg.norm(outlined[:, :3] - centre, axis=1) / outlined[:, 3]
+            if float(gap.min()) <= OUTLINE_REACH:
+                test = {"mean_radiance": float((radiance[idx] * area[idx]).sum()
+                                               / max(area[idx].sum(), 1e-30)),
+                        "outlined": 1.0, "headroom_stops": headroom}
         if test is not None:
             emitting.append(idx)
             tests.append(test)

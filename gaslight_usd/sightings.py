@@ -25,7 +25,7 @@ room's true lights.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -162,22 +162,57 @@ class Sightings:
                    white)
 
 
-def sight_lights(cameras: list[PinholeCamera], images: list[np.ndarray], white: float,
-                 weights: np.ndarray) -> Sightings:
-    """The light regions of ``images`` (linear HDR, one per camera) over ``white``
-    (luminance with ``weights``), as cones from the cameras (module docstring)."""
+@dataclass
+class PeakMap:
+    """A view's luminance as block maxima at most
+    :data:`gaslight_usd.fit.frame_edge.ANALYSIS_SIZE` across, taken from the photo's
+    own resolution (:func:`peak_map`): a bulb two pixels wide in a 12 MP photo is
+    still over the white here, where a view shrunk to the fit's working size has
+    averaged it into the wall."""
+
+    peaks: np.ndarray
+    """(h, w) float32 block maxima of the luminance (specks removed)."""
+    block: int
+    """Full-size pixels per block side."""
+    size: tuple[int, int]
+    """(width, height) of the full-size view."""
+    white: float | None = None
+    """The view's own white at full size (the median of its clip floors), None when it
+    clipped nothing."""
+
+
+def peak_map(image: np.ndarray, weights: np.ndarray, white: float | None) -> PeakMap:
+    """``image`` (H, W, 3) linear HDR as a :class:`PeakMap`; ``white``: its own white
+    (specks over it are removed, :func:`without_specks`; None: none removed)."""
+    lum = np.asarray(image, np.float32) @ np.asarray(weights, np.float32)
+    if white is not None and white > 0:
+        lum = without_specks(lum / np.float32(white)) * np.float32(white)
+    peaks, k = block_max(lum)
+    own = float(white) if white is not None and white > 0 else None
+    return PeakMap(peaks.astype(np.float32), k, (int(image.shape[1]), int(image.shape[0])),
+                   own)
+
+
+def sight_lights(cameras: list[PinholeCamera], images: Sequence[np.ndarray | PeakMap],
+                 white: float | Sequence[float], weights: np.ndarray) -> Sightings:
+    """The light regions of ``images`` (linear HDR, one per camera, or their
+    :class:`PeakMap`) over ``white`` (luminance with ``weights``; one for all views,
+    or one per view: see :func:`view_whites`), as cones from the cameras (module
+    docstring)."""
     from .fit.frame_edge import WHOLE, light_regions, pixel_rays
 
+    per_view = np.broadcast_to(np.asarray(white, np.float64), (len(images),))
     view, axes, radii, whole, whites = [], [], [], [], []
     for v, (cam, image) in enumerate(zip(cameras, images, strict=True)):
-        lum = np.asarray(image, np.float32) @ np.asarray(weights, np.float32)
-        ratio, k = block_max(lum / np.float32(white))
+        peaks = image if isinstance(image, PeakMap) else peak_map(image, weights, per_view[v])
+        ratio = peaks.peaks / np.float32(per_view[v])
         reg = light_regions(ratio)
         count = len(reg.centroids)
         if not count:
             continue
-        # camera pixels per block (the views may be at another size than the camera)
-        sx, sy = k * cam.width / lum.shape[1], k * cam.height / lum.shape[0]
+        # camera pixels per block (the camera may be at another size than the view)
+        sx = peaks.block * cam.width / peaks.size[0]
+        sy = peaks.block * cam.height / peaks.size[1]
         summed = ndimage.sum(ratio, reg.labels, np.arange(1, count + 1))
         keep = np.argsort(-summed, kind="stable")[:MAX_REGIONS_PER_VIEW]
         axis = pixel_rays(cam, reg.centroids * [sx, sy])
@@ -193,13 +228,46 @@ def sight_lights(cameras: list[PinholeCamera], images: list[np.ndarray], white: 
         radii.append(widest[keep] + pixel)
         whole.append(reg.kind[keep + 1] == WHOLE)
         whites.append(summed[keep])
+    recorded = float(np.median(per_view)) if len(per_view) else 1.0
     if not view:
         return Sightings(np.array([c.center for c in cameras]).reshape(-1, 3),
                          np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0),
-                         np.zeros(0, bool), np.zeros(0), float(white))
+                         np.zeros(0, bool), np.zeros(0), recorded)
     return Sightings(np.array([c.center for c in cameras]), np.concatenate(view),
                      np.concatenate(axes), np.concatenate(radii), np.concatenate(whole),
-                     np.concatenate(whites), float(white))
+                     np.concatenate(whites), recorded)
+
+
+def view_whites(floors: Sequence[np.ndarray | None], fallback: float) -> np.ndarray:
+    """(V,) each view's own white: the median of its clipped pixels' clip floors, or
+    ``fallback`` for a view that clipped nothing.
+
+    One white for a set shot with auto-exposure is wrong for most of its views: the
+    views differ by stops, so in a view exposed brighter than the median a lit wall
+    over the shared white merges with the bare bulb it surrounds into one region a
+    fifth of the frame wide (the chain bench's bulb room: the bulb's region 14 % of
+    the frame at one shared white, 9 pixels at each view's own), and the bulb is never
+    seen as the small light it is.
+    """
+    out = np.full(len(floors), float(fallback))
+    for v, floor in enumerate(floors):
+        if floor is not None and np.any(floor > 0):
+            out[v] = float(np.median(floor[floor > 0]))
+    return out
+
+
+def without_specks(ratio: np.ndarray) -> np.ndarray:
+    """``ratio`` (luminance in whites) with the pixels over the white that no 2 x 2
+    block over the white holds (isolated specks, 1-pixel lines) put just under it.
+
+    Sensor noise and a path tracer's fireflies put such specks all over a photo; as
+    regions they make cones that hold any point in space (the chain bench's shaded-lamp
+    room: 48 regions in every view, most of them specks, and hundreds of places the
+    views "agreed" on a light). A light 2 pixels across survives.
+    """
+    over = ratio >= 1.0
+    kept = ndimage.binary_opening(over, structure=np.ones((2, 2), bool))
+    return np.where(over & ~kept, np.minimum(ratio, np.float32(0.999)), ratio)
 
 
 def block_max(image: np.ndarray, long_side: int | None = None) -> tuple[np.ndarray, int]:

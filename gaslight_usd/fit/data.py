@@ -26,6 +26,7 @@ from ..poses import read_poses
 from ..poses.colmap import ColmapModel
 from ..poses.views import CLIP_FLOOR_CHANNEL, hdr_view_paths
 from ..resize import area_resize, fit_within
+from ..sightings import PeakMap, peak_map
 
 
 @dataclass
@@ -46,6 +47,17 @@ class FitData:
     floors: list[np.ndarray | None] = field(default_factory=list)
     """Per view ``(H, W)`` lower bounds on the luminance where its photo clipped, 0 where
     it measured (see :func:`fit_floor`); empty or None: every pixel was measured."""
+
+    peaks: list[PeakMap] = field(default_factory=list)
+    """Per view its luminance peaks from the full-size view (:func:`peak_map`), for
+    finding small lights the working size averages away; empty for in-memory data."""
+
+    def light_views(self) -> list[np.ndarray | PeakMap]:
+        """Per view what to find its lights in: its full-size peaks when read from
+        files, else its image at fitting size."""
+        if len(self.peaks) == len(self.images):
+            return list(self.peaks)
+        return list(self.images)
 
     def floor(self, index: int) -> np.ndarray | None:
         """View ``index``'s clip floor, None when it has no clipped pixel."""
@@ -232,9 +244,11 @@ def check_overlap(cameras: list[PinholeCamera], points: np.ndarray | None = None
 
 
 def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: int = 1
-              ) -> tuple[np.ndarray, PinholeCamera, Any, np.ndarray | None]:
-    """One HDR view at fitting size, its camera to match, the image read, and its clip
-    floor at fitting size (None when its photo clipped nothing, see :func:`fit_floor`).
+              ) -> tuple[np.ndarray, PinholeCamera, Any, np.ndarray | None, PeakMap]:
+    """One HDR view at fitting size, its camera to match, the image read, its clip
+    floor at fitting size (None when its photo clipped nothing, see :func:`fit_floor`)
+    and its full-size luminance peaks (:func:`gaslight_usd.sightings.peak_map`, specks
+    over its own white removed: the median of its full-size clip floors).
 
     The view's camera is ``cam`` scaled to the view's own size (working-size
     views from ``run``), then both are shrunk so the long side is at most
@@ -250,12 +264,16 @@ def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: 
     cam = scale_camera_to(cam, *size)
     pixels = box_downscale(pixels, downscale)
     floor = read_channel(path, CLIP_FLOOR_CHANNEL)
+    weights = luminance_weights(img.colour_space, fallback=True)
     if floor is not None and np.any(floor > 0):
-        floor = fit_floor(floor, full, luminance_weights(img.colour_space), size, downscale)
+        peaks = peak_map(full, weights, float(np.median(floor[floor > 0])))
+        floor = fit_floor(floor, full, weights, size, downscale)
     else:
+        peaks = peak_map(full, weights, None)
         floor = None
     img.pixels = np.empty((0, 0, 3), np.float32)
-    return np.ascontiguousarray(pixels, np.float32), scale_camera(cam, downscale), img, floor
+    return (np.ascontiguousarray(pixels, np.float32), scale_camera(cam, downscale), img,
+            floor, peaks)
 
 
 def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
@@ -267,11 +285,11 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
     left_out: list[str] = []
     pairs = match_views(hdr_dir, model, left_out)
     check_overlap([c for c, _ in pairs], model.points)
-    names, cams, images, paths, floors = [], [], [], [], []
+    names, cams, images, paths, floors, peaks = [], [], [], [], [], []
     space, attrs = "", {}
     for cam, path in pairs:
         paths.append(path)
-        pixels, scaled, img, floor = load_view(path, cam, working_size, downscale)
+        pixels, scaled, img, floor, peak = load_view(path, cam, working_size, downscale)
         if not space:
             space = img.colour_space
             attrs = {k: v for k, v in img.metadata.items() if k.startswith("gaslight:")}
@@ -279,6 +297,7 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
         cams.append(scaled)
         images.append(pixels)
         floors.append(floor)
+        peaks.append(peak)
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
                    attributes=attrs, downscale=downscale, paths=paths, floors=floors,
-                   left_out=left_out)
+                   left_out=left_out, peaks=peaks)

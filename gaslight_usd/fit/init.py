@@ -28,6 +28,7 @@ from ..cameras import PinholeCamera
 from ..colour import luminance_weights
 from ..poses import colour_points
 from ..poses.colmap import ColmapModel
+from .light_seeds import LightSeedPoints
 
 
 def neighbour_scales(points: np.ndarray) -> np.ndarray:
@@ -242,14 +243,30 @@ def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
 def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: list[np.ndarray],
                    names: list[str], count: int, rng: np.random.Generator,
                    floors: list[np.ndarray | None] | None = None,
-                   y_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+                   y_weights: np.ndarray | None = None,
+                   seeded: LightSeedPoints | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """Points, HDR colours and how they were made.
 
-    "sparse points + surface fill" when the model has points, else "plane sweep".
-    ``floors``: the views' clip floors (None: every pixel measured), for the lights'
-    colours (:func:`bright_points`); ``y_weights``: the views' luminance weights
-    (default Rec.709's), to find the lights.
+    "sparse points + surface fill" when the model has points, else "plane sweep";
+    either way "+ N seeded lights" with ``seeded`` (points on the compact lights the
+    clipped outlines place, :mod:`.light_seeds`). ``floors``: the views' clip floors
+    (None: every pixel measured), for the lights' colours (:func:`bright_points`);
+    ``y_weights``: the views' luminance weights (default Rec.709's), to find the lights.
     """
+    extra = len(seeded.points) if seeded is not None else 0
+    pts, cols, how = _unseeded_points(model, cameras, images, names, max(count - extra, 0),
+                                      rng, floors, y_weights)
+    if seeded is not None and seeded.lights:
+        pts = np.concatenate([pts, seeded.points])
+        cols = np.concatenate([cols, seeded.colours])
+        how += f" + {seeded.lights} seeded light{'s' if seeded.lights > 1 else ''}"
+    return pts, cols, how
+
+
+def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
+                     images: list[np.ndarray], names: list[str], count: int,
+                     rng: np.random.Generator, floors: list[np.ndarray | None] | None,
+                     y_weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, str]:
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
         pts = np.asarray(model.points, np.float64)

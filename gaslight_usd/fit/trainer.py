@@ -42,7 +42,7 @@ from ..errors import FitDiverged, InputError
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
-from ..sightings import sight_lights
+from ..sightings import sight_lights, view_whites
 from ..splats import SplatScene
 from .backdrop import concatenate, unseen_backdrop
 from .checkpoint import load_checkpoint, save_checkpoint
@@ -51,6 +51,7 @@ from .data import FitData
 from .exposure_check import exposure_outliers
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .init import initial_points, neighbour_scales
+from .light_seeds import LightSeed, LightSeedPoints, find_light_seeds, seed_points
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .pose_refine import PoseRefiner
@@ -122,7 +123,7 @@ class Trainer:
         floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
                                         min(cfg.init_points, cfg.budget), rng, floors,
-                                        self.y_weights.cpu().numpy())
+                                        self.y_weights.cpu().numpy(), self._seeded_lights(rng))
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
@@ -406,17 +407,53 @@ class Trainer:
                               self.y_weights.cpu().numpy())
         return cut_lights(self.data.cameras, ratios, self.data.names)
 
+    def _view_whites(self, views: list[int]) -> np.ndarray | None:
+        """Each of ``views``' white (:func:`gaslight_usd.sightings.view_whites`; a view
+        that clipped nothing: the median of the views' brightest clip floors), or None
+        when no view clipped."""
+        floors = [self.data.floor(i) for i in range(len(self.data.images))]
+        whites = [float(f.max()) for f in floors if f is not None]
+        if not whites:
+            return None
+        own = view_whites([floors[i] for i in views], float(np.median(whites)))
+        if len(self.data.peaks) == len(self.data.images):
+            # the full-size peaks are read over the full-size white (a fitting pixel's
+            # floor is averaged with the measured pixels it covers: lower)
+            full = [p.white for p in self.data.peaks]
+            known = [w for w in full if w is not None]
+            if known:
+                fallback = float(np.median(known))
+                own = np.array([fallback if full[i] is None else full[i] for i in views])
+        return own
+
+    def _light_seeds(self) -> list[LightSeed]:
+        """The compact lights the photos clipped, placed by their outlines
+        (:mod:`.light_seeds`) in every view (held-out ones too: the seeds only start
+        the fit, and the lights finder reads them); none when no view clipped."""
+        if getattr(self, "_seeds", None) is None:
+            whites = self._view_whites(list(range(len(self.data.images))))
+            self._seeds = [] if whites is None else find_light_seeds(
+                self.data.cameras, self.data.light_views(), whites,
+                self.y_weights.cpu().numpy())
+        return self._seeds
+
+    def _seeded_lights(self, rng: np.random.Generator) -> LightSeedPoints:
+        """Initial points on :meth:`_light_seeds`."""
+        seeds = self._light_seeds()
+        pts, cols = seed_points(seeds, self.data.cameras, self.data.light_views(),
+                                self.data.images, rng, self.y_weights.cpu().numpy())
+        return LightSeedPoints(pts, cols, len(seeds))
+
     def _light_sightings(self) -> dict[str, Any]:
         """The views' light regions as cones (:func:`gaslight_usd.sightings.sight_lights`),
-        from every view (held-out ones too), over the white the photos clipped at (the
-        median of the views' brightest clip floors), or the views' exposure scale when
-        no view clipped."""
-        whites = [float(f.max()) for f in (self.data.floor(i)
-                                           for i in range(len(self.data.images)))
-                  if f is not None]
-        white = float(np.median(whites)) if whites else float(
-            self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
-        return sight_lights(self.data.cameras, self.data.images, white,
+        from every view (held-out ones too), each over the white its photo clipped at
+        (:func:`gaslight_usd.sightings.view_whites`; a view that clipped nothing: the
+        median of the views' brightest clip floors, or the views' exposure scale when
+        no view clipped)."""
+        whites = self._view_whites(list(range(len(self.data.images))))
+        if whites is None:
+            whites = float(self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
+        return sight_lights(self.data.cameras, self.data.light_views(), whites,
                             self.y_weights.cpu().numpy()).as_dict()
 
     def _weigh_clipped_lights(self, scene: SplatScene, backdrop: int,
@@ -470,7 +507,8 @@ class Trainer:
         scene.metadata = {**scene.metadata,
                           "cameras": {"centres": [[round(float(v), 6) for v in c.center]
                                                   for c in self.data.cameras]},
-                          "light_sightings": self._light_sightings()}
+                          "light_sightings": self._light_sightings(),
+                          "light_seeds": [seed.as_dict() for seed in self._light_seeds()]}
         lights: list[LightPower] = []
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):

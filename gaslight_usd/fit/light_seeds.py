@@ -1,0 +1,255 @@
+"""Initial splats on the compact lights the photos clipped, placed by their outlines.
+
+A bare bulb clipped in every photo has no features for SfM to triangulate, and the
+uplift fills it only a few times the white (not the thousands of times the walls it
+is), so :func:`gaslight_usd.fit.init.bright_points`' brightness test passes it by and
+no initial splat sits on it. The fit moves and splits the splats it has; it does not
+make one where none is near, so the light vanishes (the chain bench's bulb room at
+``fast``: nearest splat 0.36 m from the bulb).
+
+Its clipped outline is still there in every photo that frames it: a small whole region
+over that photo's white, a cone from the camera (:mod:`gaslight_usd.sightings`, each
+view over its own white). Two such cones from views at least
+:data:`gaslight_usd.sightings.MIN_BASELINE_DEG` apart whose centroid rays meet inside
+both cones give a candidate point; a candidate stands when the cones of at least
+:data:`MIN_SUPPORT_SHARE` of the views that frame it hold it (a bulb is seen wherever
+it is framed, bar an occluder; two specks of noise meet by chance and no third view
+agrees). Stood candidates are taken most-agreed first (share, then views), each placed where its
+holding views' rays meet (least squares), and the others within :data:`MERGE_SIZES`
+sizes of it dropped. Each light gets :data:`POINTS_PER_LIGHT` points in a ball of its
+outline's size there, coloured by the brightest of its views at that point.
+
+Broad lights (outlines wider than :data:`MAX_CONE_DEG`: windows, big panels) are left
+to the surface fill, which puts them on their walls.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..cameras import PinholeCamera
+from ..sightings import MIN_BASELINE_DEG, PeakMap, Sightings, sight_lights
+from .frame_edge import meeting_points
+
+MAX_CONE_DEG = 6.0
+"""Outlines this wide (half-angle) or narrower are compact lights (the chain bench's
+bulb 1.0-1.4 deg, its shaded lamp 3.8-5.7, its ceiling panels 4.4-5.7; windows 6.5-14)."""
+MIN_SUPPORT_SHARE = 2.0 / 3.0
+"""Share of the views framing a candidate whose outlines must hold it."""
+MIN_VIEWS = 3
+"""Views whose outlines hold a seeded light, at least."""
+MERGE_SIZES = 3.0
+"""Candidates within this many of a taken light's sizes are that light."""
+POINTS_PER_LIGHT = 12
+"""Initial points per seeded light."""
+FRAME_MARGIN = 0.02
+"""A point counts as framed when it projects this share of the width inside the frame
+(a light on the border is cut, and its outline is not whole)."""
+
+
+@dataclass
+class LightSeed:
+    """A compact light found from its outlines."""
+
+    position: np.ndarray
+    """(3,) where the holding views' centroid rays meet."""
+    size: float
+    """Radius of the cones at the light, median over the holding views."""
+    views: list[int]
+    """The views whose outlines hold it."""
+    framed: int
+    """Views that frame it and hold it, or frame it and see no light there."""
+
+    @property
+    def share(self) -> float:
+        """Share of the views that frame it whose outlines hold it (1: clipped
+        wherever it is seen, as a bulb is; a clipped hot spot on a wall is measured
+        under the white by a darker view)."""
+        return len(self.views) / max(self.framed, 1)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"position": [round(float(v), 6) for v in self.position],
+                "size": round(self.size, 6), "views": self.views, "framed": self.framed}
+
+
+def _framing(points: np.ndarray, cameras: list[PinholeCamera]) -> np.ndarray:
+    """(N, V) bool: each camera frames each point (in front, inside the margin)."""
+    out = np.zeros((len(points), len(cameras)), bool)
+    for v, cam in enumerate(cameras):
+        uv, z = cam.project(points)
+        m = FRAME_MARGIN * cam.width
+        out[:, v] = (z > 0) & (uv[:, 0] >= m) & (uv[:, 0] < cam.width - m) & \
+            (uv[:, 1] >= m) & (uv[:, 1] < cam.height - m)
+    return out
+
+
+def _counted_framing(sightings: Sightings, compact: np.ndarray, points: np.ndarray,
+                     cameras: list[PinholeCamera], held: np.ndarray) -> np.ndarray:
+    """(N, V) bool: the views that count for or against each point: those whose
+    compact outlines hold it (``held``), and those that frame it and see no light
+    there at all (a view where it lies in a cut or broad region says nothing)."""
+    others = np.setdiff1d(np.arange(sightings.count), compact)
+    if len(others):
+        in_other, _ = _held_by_view(sightings, others, points, len(cameras))
+    else:
+        in_other = np.zeros_like(held)
+    return held | (_framing(points, cameras) & ~in_other)
+
+
+def _held_by_view(sightings: Sightings, regions: np.ndarray, points: np.ndarray,
+                  views: int) -> tuple[np.ndarray, np.ndarray]:
+    """(N, V) bool: some region of each view (of ``regions``) holds each point; and
+    (N, R') the miss of each point from each of those regions over its cone."""
+    rel = points[:, None] - sightings.origins[sightings.view[regions]][None]
+    norm = np.maximum(np.linalg.norm(rel, axis=2), 1e-30)
+    cos = np.einsum("nrk,rk->nr", rel, sightings.axes[regions]) / norm
+    miss = np.arccos(np.clip(cos, -1.0, 1.0)) / np.maximum(sightings.radii[regions], 1e-9)
+    onehot = np.zeros((len(regions), views))
+    onehot[np.arange(len(regions)), sightings.view[regions]] = 1.0
+    return ((miss <= 1.0) @ onehot) > 0, miss
+
+
+def seed_lights(sightings: Sightings, cameras: list[PinholeCamera]) -> list[LightSeed]:
+    """The compact lights the outlines agree on (module docstring)."""
+    compact = np.flatnonzero(sightings.whole & (sightings.radii <= math.radians(MAX_CONE_DEG)))
+    if len(compact) < MIN_VIEWS:
+        return []
+    a, b = np.triu_indices(len(compact), k=1)
+    a, b = compact[a], compact[b]
+    pair = sightings.view[a] != sightings.view[b]
+    da, db = sightings.axes[a], sightings.axes[b]
+    baseline = np.degrees(np.arccos(np.clip((da * db).sum(1), -1.0, 1.0)))
+    pair &= baseline >= MIN_BASELINE_DEG
+    a, b = a[pair], b[pair]
+    if not len(a):
+        return []
+    oa, ob = sightings.origins[sightings.view[a]], sightings.origins[sightings.view[b]]
+    mid, gap = meeting_points(oa, sightings.axes[a], ob, sightings.axes[b])
+    fine = np.isfinite(gap)
+    for r, o in ((a, oa), (b, ob)):
+        rel = mid - o
+        cos = (rel * sightings.axes[r]).sum(1) / np.maximum(np.linalg.norm(rel, axis=1), 1e-30)
+        fine &= np.arccos(np.clip(cos, -1.0, 1.0)) <= sightings.radii[r]
+    points = mid[fine]
+    if not len(points):
+        return []
+    held, _ = _held_by_view(sightings, compact, points, len(cameras))
+    framed = _counted_framing(sightings, compact, points, cameras, held)
+    support = held.sum(1)
+    stands = (support >= MIN_VIEWS) & (support >= MIN_SUPPORT_SHARE * framed.sum(1))
+    # most agreed first: the share of framing views that hold it, then their number (a
+    # clipped hot spot on a wall is measured under the white by a darker view; a bulb is
+    # over it wherever it is framed)
+    share = support / np.maximum(framed.sum(1), 1)
+    order = np.flatnonzero(stands)[np.lexsort((-support[stands], -share[stands]))]
+    seeds: list[LightSeed] = []
+    taken = np.zeros(len(points), bool)
+    for i in order:
+        if taken[i]:
+            continue
+        seed = _place(sightings, compact, points[i], cameras)
+        if seed is None:
+            taken[i] = True
+            continue
+        near = np.linalg.norm(points - seed.position, axis=1) <= MERGE_SIZES * seed.size
+        taken |= near
+        taken[i] = True
+        seeds.append(seed)
+    return seeds
+
+
+def _place(sightings: Sightings, compact: np.ndarray, point: np.ndarray,
+           cameras: list[PinholeCamera]) -> LightSeed | None:
+    """The light at a candidate: per holding view its best-centred outline, the point
+    nearest their rays, its size; None when that point leaves a holding cone."""
+    _, miss = _held_by_view(sightings, compact, point[None], len(cameras))
+    miss = miss[0]
+    best: dict[int, int] = {}
+    for r in np.flatnonzero(miss <= 1.0):
+        v = int(sightings.view[compact[r]])
+        if v not in best or miss[r] < miss[best[v]]:
+            best[v] = r
+    if len(best) < MIN_VIEWS:
+        return None
+    regions = compact[np.array(sorted(best.values()))]
+    o, d = sightings.origins[sightings.view[regions]], sightings.axes[regions]
+    proj = np.eye(3)[None] - d[:, :, None] * d[:, None, :]
+    placed = np.linalg.solve(proj.sum(0), np.einsum("rij,rj->i", proj, o))
+    held, _ = _held_by_view(sightings, regions, placed[None], len(cameras))
+    if int(held.sum()) < MIN_VIEWS:
+        return None
+    framed = _counted_framing(sightings, compact, placed[None], cameras, held)[0]
+    size = float(np.median(np.linalg.norm(placed - o, axis=1) * np.tan(sightings.radii[regions])))
+    return LightSeed(placed, size, [int(v) for v in np.flatnonzero(held[0])],
+                     int(framed.sum()))
+
+
+def seed_points(seeds: list[LightSeed], cameras: list[PinholeCamera],
+                light_views: list[np.ndarray | PeakMap], images: list[np.ndarray],
+                rng: np.random.Generator, y_weights: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 3) points in a ball of each seed's size around it, and (N, 3) their colours.
+
+    A light's points share one colour: the brightest (luminance) of its views' pixels
+    at its centre in ``images`` (at fitting size: the chroma), brightened to the most
+    luminance ``light_views`` (the full-size peaks) hold there: the outline is over its
+    view's white, so the light is at least that bright, where the fitting size has
+    averaged it with its surroundings.
+    """
+    if not seeds:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
+    y = np.asarray(y_weights, np.float32)
+    pts, cols = [], []
+    for seed in seeds:
+        n = POINTS_PER_LIGHT
+        direction = rng.normal(size=(n, 3))
+        direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
+        radius = seed.size * rng.uniform(0.0, 1.0, n) ** (1.0 / 3.0)
+        centre = seed.position[None]
+        samples = np.concatenate([_sample_at(images[v], cameras[v], centre)
+                                  for v in seed.views])
+        colour = samples[int(np.argmax(samples @ y))]
+        peak = max(float(_sample_at(_luminance(light_views[v], y), cameras[v], centre)[0, 0])
+                   for v in seed.views)
+        colour = colour * max(peak / max(float(colour @ y), 1e-12), 1.0)
+        pts.append(seed.position + direction * radius[:, None])
+        cols.append(np.tile(colour, (n, 1)))
+    return np.concatenate(pts), np.concatenate(cols).astype(np.float32)
+
+
+def _luminance(view: np.ndarray | PeakMap, y: np.ndarray) -> np.ndarray:
+    """(h, w, 1) a light view's luminance (a peak map's peaks, an image's Y)."""
+    if isinstance(view, PeakMap):
+        return view.peaks[..., None]
+    return (np.asarray(view, np.float32) @ y)[..., None]
+
+
+def _sample_at(image: np.ndarray, cam: PinholeCamera, points: np.ndarray) -> np.ndarray:
+    """(N, C) the pixels of ``image`` (any size, framing as ``cam``) the points land in."""
+    uv, _ = cam.project(points)
+    h, w = image.shape[:2]
+    x = np.clip((uv[:, 0] * w / cam.width).astype(np.int64), 0, w - 1)
+    y = np.clip((uv[:, 1] * h / cam.height).astype(np.int64), 0, h - 1)
+    return image[y, x].astype(np.float32)
+
+
+@dataclass
+class LightSeedPoints:
+    """Initial points on the seeded lights (:func:`seeded_lights`)."""
+
+    points: np.ndarray
+    colours: np.ndarray
+    lights: int
+
+
+def find_light_seeds(cameras: list[PinholeCamera], light_views: list[np.ndarray | PeakMap],
+                     whites: np.ndarray, y_weights: np.ndarray) -> list[LightSeed]:
+    """The compact lights the views' outlines over their ``whites``
+    (:func:`gaslight_usd.sightings.view_whites`) place, found in ``light_views``
+    (full-size peaks, :meth:`FitData.light_views`; module docstring)."""
+    luma = np.asarray(y_weights, np.float64)
+    return seed_lights(sight_lights(cameras, light_views, whites, luma), cameras)

@@ -1,0 +1,129 @@
+"""Compact lights the photos clipped: found from their outlines, seeded, and kept as lights.
+
+Views are rendered from the splat room of tests/test_lights.py (a lamp, a window, a
+ceiling patch the lamp lights), then clipped as auto-exposed photos clip them: each view
+at its own white, the lamp's pixels left at that white (an uplift that added nothing).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from test_lights import LAMP, _recoloured, room_scene
+from test_sightings import Y709, _cameras, _views
+
+from gaslight_usd.fit.init import initial_points
+from gaslight_usd.fit.light_seeds import (
+    LightSeedPoints,
+    find_light_seeds,
+    seed_points,
+)
+from gaslight_usd.lights import search_lights
+from gaslight_usd.poses.colmap import ColmapModel
+from gaslight_usd.resize import area_resize
+from gaslight_usd.sightings import peak_map, sight_lights, view_whites, without_specks
+
+# each view's white in the views' units: auto-exposure moved them by up to a stop
+WHITES = np.array([1.0, 1.6, 0.8, 1.3, 1.1, 0.9, 1.5, 1.2])
+
+
+def _clipped_views(specks: float = 0.0) -> tuple[list, list[np.ndarray]]:
+    scene, _ = room_scene()
+    cams = _cameras()
+    rng = np.random.default_rng(3)
+    views = []
+    for image, white in zip(_views(scene, cams), WHITES, strict=True):
+        image = np.minimum(image, white)
+        if specks:  # single pixels over the white: sensor noise, fireflies
+            hit = rng.random(image.shape[:2]) < specks
+            image[hit] = 3.0 * white
+        views.append(image.astype(np.float32))
+    return cams, views
+
+
+def test_a_clipped_lamp_is_placed_from_its_outlines_and_nothing_else_is_outlined():
+    cams, views = _clipped_views()
+    seeds = find_light_seeds(cams, views, WHITES, Y709)
+    outlined = [s for s in seeds if s.share >= 1.0]
+    assert len(outlined) == 1
+    lamp = outlined[0]
+    assert np.linalg.norm(lamp.position - LAMP) < 0.05
+    assert len(lamp.views) >= 3 and 0.0 < lamp.size < 0.15
+    # the window is a broad light (left to the surface fill), the rest is no light
+    assert all(np.linalg.norm(s.position - LAMP) < 0.3 or s.share < 1.0 for s in seeds)
+    # the seed points sit on the lamp, at least as bright as the white that clipped it
+    pts, cols = seed_points(outlined, cams, views, views, np.random.default_rng(0), Y709)
+    assert len(pts) == len(cols) > 0
+    assert np.linalg.norm(pts - lamp.position, axis=1).max() <= lamp.size + 1e-9
+    assert (cols @ Y709).min() >= WHITES[lamp.views].min() * 0.99
+
+
+def test_noise_specks_over_the_white_place_no_lights():
+    cams, clean = _clipped_views()
+    _, noisy = _clipped_views(specks=0.02)
+    raw = sight_lights(cams, noisy, WHITES * 10.0, Y709)  # the sightings with no specks
+    assert raw.count == 0
+    found = find_light_seeds(cams, noisy, WHITES, Y709)
+    expected = find_light_seeds(cams, clean, WHITES, Y709)
+    assert len(found) == len(expected)
+    assert sum(s.share >= 1.0 for s in found) == 1
+
+
+def test_one_shared_white_merges_the_lamp_into_a_brighter_views_lit_surroundings():
+    """The view exposed a stop darker than the others has a wall over the shared white."""
+    floors = [np.array([[0.0, 2.0], [2.2, 0.0]]), None, np.array([[0.5, 0.5], [0.0, 0.5]])]
+    np.testing.assert_allclose(view_whites(floors, 1.0), [2.1, 1.0, 0.5])
+    cams, views = _clipped_views()
+    shared = sight_lights(cams, views, float(WHITES.min()), Y709)
+    own = sight_lights(cams, views, WHITES, Y709)
+    held_shared = shared.radii[shared.holding(LAMP[None])[0]]
+    held_own = own.radii[own.holding(LAMP[None])[0]]
+    assert held_own.max() < held_shared.max()
+
+
+def test_full_size_peaks_keep_a_bulb_the_working_size_averages_away():
+    image = np.full((480, 640, 3), 0.2, np.float32)
+    image[200:202, 300:302] = 1.0  # a clipped bulb, 2 pixels across
+    image[50, 50] = 1.0  # a speck
+    small = area_resize(image, 120, 90) @ Y709
+    assert small.max() < 1.0  # at the fit's working size the bulb is gone
+    peaks = peak_map(image, Y709, 1.0)
+    assert peaks.block == 4 and peaks.size == (640, 480)
+    assert peaks.peaks[200 // 4, 300 // 4] >= 1.0
+    assert peaks.peaks[50 // 4, 50 // 4] < 1.0  # the speck is not a light
+    ratio = without_specks(image @ Y709)
+    assert ratio[200, 300] >= 1.0 and ratio[50, 50] < 1.0
+
+
+def test_a_short_lamp_the_outlines_placed_is_a_light_and_a_hot_spot_is_not():
+    """The uplift left the lamp just over the white and the ceiling it lights is clipped
+    too: the clipped ceiling may be up to the headroom brighter, so the emitter test
+    alone takes the lamp for a lit surface. The photos placed a light there, clipped
+    wherever it was framed: that makes it a light. An outline some view measured under
+    the white (share < 1) does not."""
+    scene, parts = room_scene()
+    rgb = scene.base_colours.copy()
+    rgb[parts["lamp"]] = [1.6, 1.5, 1.3]
+    scene = _recoloured(scene, rgb)
+    assert not search_lights(scene).emitters[parts["lamp"]].any()
+    seed = {"position": LAMP.tolist(), "size": 0.05, "views": [0, 1, 2, 3], "framed": 4}
+    scene.metadata = {**scene.metadata, "light_seeds": [seed]}
+    found = search_lights(scene)
+    assert found.emitters[parts["lamp"]].mean() > 0.9
+    assert not found.emitters[parts["lit"]].any()
+    lamp = min(found.lights, key=lambda li: np.linalg.norm(li.position - LAMP))
+    assert np.linalg.norm(lamp.position - LAMP) < 0.05
+    scene.metadata = {**scene.metadata, "light_seeds": [{**seed, "framed": 5}]}
+    assert not search_lights(scene).emitters[parts["lamp"]].any()
+
+
+def test_initial_points_add_the_seeded_lights():
+    cams, views = _clipped_views()
+    seeds = [s for s in find_light_seeds(cams, views, WHITES, Y709) if s.share >= 1.0]
+    pts, cols = seed_points(seeds, cams, views, views, np.random.default_rng(0), Y709)
+    model = ColmapModel(cameras=[])
+    got, colours, how = initial_points(model, cams, views, [f"v{i}" for i in range(8)], 500,
+                                       np.random.default_rng(0),
+                                       seeded=LightSeedPoints(pts, cols, len(seeds)))
+    assert how.endswith("+ 1 seeded light") and len(got) == len(colours)
+    np.testing.assert_allclose(got[-len(pts):], pts)
+    np.testing.assert_allclose(colours[-len(pts):], cols)
