@@ -244,10 +244,10 @@ def view_whites(floors: Sequence[np.ndarray | None], fallback: float) -> np.ndar
 
     One white for a set shot with auto-exposure is wrong for most of its views: the
     views differ by stops, so in a view exposed brighter than the median a lit wall
-    over the shared white merges with the bare bulb it surrounds into one region a
-    fifth of the frame wide (the chain bench's bulb room: the bulb's region 14 % of
-    the frame at one shared white, 9 pixels at each view's own), and the bulb is never
-    seen as the small light it is.
+    over the shared white merges with the bare bulb it surrounds into one region (the
+    chain bench's bulb room, the four views that frame the bulb: its region 12-26 % of
+    the frame at one shared white, under 0.1 % at each view's own), and the bulb is
+    never seen as the small light it is.
     """
     out = np.full(len(floors), float(fallback))
     for v, floor in enumerate(floors):
