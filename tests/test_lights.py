@@ -264,6 +264,41 @@ def test_an_emitter_behind_the_surface_it_is_seen_through_is_moved_onto_it():
     np.testing.assert_array_equal(moved[:400], pos[:400])
 
 
+def test_each_splat_a_little_behind_its_surface_is_moved_onto_it():
+    """From the origin: a wall 2 m off along +z; splats 0.1 m behind it go onto it, one
+    in front and one 1 m behind (seen through a gap, in another room) stay."""
+    rng = np.random.default_rng(0)
+    wall = np.column_stack([rng.uniform(-1, 1, 400), rng.uniform(-1, 1, 400),
+                            2.0 + rng.normal(0, 0.01, 400)])
+    lights_at = np.array([[0.1, 0.0, 2.1], [0.3, 0.1, 2.12], [-0.3, 0.2, 1.5], [0.0, 0.3, 3.0]])
+    pos = np.concatenate([wall, lights_at])
+    surface = np.zeros(len(pos), bool)
+    surface[:400] = True
+    idx = np.arange(400, 404)
+    moved_to, moved = lights.onto_surfaces_each(pos, idx, np.zeros(3), surface)
+    assert moved.tolist() == [True, True, False, False]
+    np.testing.assert_allclose(moved_to[:2, 2], 2.0, atol=0.02)  # on the wall's plane
+    np.testing.assert_allclose(moved_to[:2] / np.linalg.norm(moved_to[:2], axis=1)[:, None],
+                               pos[400:402] / np.linalg.norm(pos[400:402], axis=1)[:, None])
+    np.testing.assert_array_equal(moved_to[2:], pos[402:])
+
+
+def test_a_windows_splats_sunk_behind_its_wall_are_written_on_it():
+    """A fit that left a fifth of the window's splats 10 cm behind the wall (x = 2.5):
+    the lights finder still finds the window, and writes none of them outside the room."""
+    scene, parts = room_scene()
+    pos = scene.positions.copy()
+    sunk = parts["window"][::5]
+    pos[sunk, 0] += 0.1
+    scene = SplatScene.from_activated(pos, scene.base_colours, scene.scales,
+                                      scene.opacities, metadata=scene.metadata)
+    found = search_lights(scene)
+    assert found.emitters[sunk].all()
+    assert outside_room(scene.positions[sunk]).all()
+    assert not outside_room(found.positions[found.emitters]).any()
+    assert found.counts["sunk_splats_moved"] >= len(sunk)
+
+
 def test_a_lights_bright_copy_is_no_surface_to_see_it_through():
     """A lit ceiling a little above white is a surface; a window-coloured sheet a fit left
     in front of its window (several times white) is the light's own smear, not a wall."""
