@@ -249,14 +249,18 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
 
     "sparse points + surface fill" when the model has points, else "plane sweep";
     either way "+ N seeded lights" with ``seeded`` (points on the compact lights the
-    clipped outlines place, :mod:`.light_seeds`). ``floors``: the views' clip floors
+    clipped outlines place, :mod:`.light_seeds`; only those the other points leave
+    bare, in place of the last surface-fill points). ``floors``: the views' clip floors
     (None: every pixel measured), for the lights' colours (:func:`bright_points`);
     ``y_weights``: the views' luminance weights (default Rec.709's), to find the lights.
     """
-    extra = len(seeded.points) if seeded is not None else 0
-    pts, cols, how = _unseeded_points(model, cameras, images, names, max(count - extra, 0),
-                                      rng, floors, y_weights)
+    pts, cols, how = _unseeded_points(model, cameras, images, names, count, rng, floors,
+                                      y_weights)
+    if seeded is not None:
+        seeded = seeded.missing_from(pts)
     if seeded is not None and seeded.lights:
+        keep = max(min(len(pts), count - len(seeded.points)), 0)  # never past ``count``
+        pts, cols = pts[:keep], cols[:keep]
         pts = np.concatenate([pts, seeded.points])
         cols = np.concatenate([cols, seeded.colours])
         how += f" + {seeded.lights} seeded light{'s' if seeded.lights > 1 else ''}"

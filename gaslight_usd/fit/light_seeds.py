@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
 from ..sightings import MIN_BASELINE_DEG, PeakMap, Sightings, sight_lights
@@ -239,11 +240,31 @@ def _sample_at(image: np.ndarray, cam: PinholeCamera, points: np.ndarray) -> np.
 
 @dataclass
 class LightSeedPoints:
-    """Initial points on the seeded lights (:func:`seeded_lights`)."""
+    """Initial points on the seeded lights (:func:`seed_points`), in light order."""
 
     points: np.ndarray
     colours: np.ndarray
     lights: int
+    centres: np.ndarray | None = None
+    """(lights, 3) the lights' positions (None: not known, every light is kept)."""
+    sizes: np.ndarray | None = None
+    """(lights,) their sizes."""
+
+    def missing_from(self, points: np.ndarray) -> LightSeedPoints:
+        """Only the lights that ``points`` (the other initial points) leave bare: fewer
+        than :data:`POINTS_PER_LIGHT` of them within the light's size. A lamp the
+        brightness test already found keeps the start it had (its colour from its
+        brightest measured pixel, not this seed's white)."""
+        if self.centres is None or self.sizes is None or not self.lights or not len(points):
+            return self
+        tree = cKDTree(np.asarray(points, np.float64))
+        counts = np.array([len(tree.query_ball_point(c, r))
+                           for c, r in zip(self.centres, self.sizes, strict=True)])
+        bare = counts < POINTS_PER_LIGHT
+        per = len(self.points) // self.lights
+        rows = np.repeat(bare, per)
+        return LightSeedPoints(self.points[rows], self.colours[rows], int(bare.sum()),
+                               self.centres[bare], self.sizes[bare])
 
 
 def find_light_seeds(cameras: list[PinholeCamera], light_views: list[np.ndarray | PeakMap],

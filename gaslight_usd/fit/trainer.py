@@ -123,7 +123,7 @@ class Trainer:
         floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
                                         min(cfg.init_points, cfg.budget), rng, floors,
-                                        self.y_weights.cpu().numpy(), self._seeded_lights(rng))
+                                        self.y_weights.cpu().numpy(), self._seeded_lights())
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
@@ -437,12 +437,16 @@ class Trainer:
                 self.y_weights.cpu().numpy())
         return self._seeds
 
-    def _seeded_lights(self, rng: np.random.Generator) -> LightSeedPoints:
-        """Initial points on :meth:`_light_seeds`."""
+    def _seeded_lights(self) -> LightSeedPoints:
+        """Initial points on :meth:`_light_seeds`, drawn from their own generator (the
+        other initial points draw what they drew without seeds)."""
         seeds = self._light_seeds()
+        rng = np.random.default_rng([self.seed, 7])
         pts, cols = seed_points(seeds, self.data.cameras, self.data.light_views(),
                                 self.data.images, rng, self.y_weights.cpu().numpy())
-        return LightSeedPoints(pts, cols, len(seeds))
+        return LightSeedPoints(pts, cols, len(seeds),
+                               np.array([s.position for s in seeds]).reshape(-1, 3),
+                               np.array([s.size for s in seeds]))
 
     def _light_sightings(self) -> dict[str, Any]:
         """The views' light regions as cones (:func:`gaslight_usd.sightings.sight_lights`),
