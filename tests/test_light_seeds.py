@@ -127,3 +127,17 @@ def test_initial_points_add_the_seeded_lights():
     assert how.endswith("+ 1 seeded light") and len(got) == len(colours)
     np.testing.assert_allclose(got[-len(pts):], pts)
     np.testing.assert_allclose(colours[-len(pts):], cols)
+
+
+def test_a_light_the_other_points_already_cover_is_not_seeded_again():
+    """A lamp the brightness test found keeps the start it had; a bare one is seeded."""
+    rng = np.random.default_rng(0)
+    centres = np.array([[0.0, 2.0, 0.0], [1.0, 1.0, 1.0]])
+    seeded = LightSeedPoints(np.repeat(centres, 12, axis=0), np.ones((24, 3), np.float32), 2,
+                             centres, np.array([0.05, 0.05]))
+    others = np.concatenate([centres[0] + rng.normal(0, 0.01, (20, 3)),
+                             rng.uniform(-2, 2, (200, 3))])
+    left = seeded.missing_from(others)
+    assert left.lights == 1 and len(left.points) == 12
+    np.testing.assert_allclose(left.centres, centres[1:])
+    np.testing.assert_allclose(left.points, np.repeat(centres[1:], 12, axis=0))
