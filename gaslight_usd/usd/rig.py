@@ -26,6 +26,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,13 @@ from .instancer import emitter_mask
 from .palette import kmeans
 
 MAX_LIGHTS = 16
+DOME_SAMPLING_WIDTH = 1024
+"""Lat-long width the dome's panorama is at least drawn at before it is box-filtered
+(half the lights' :data:`gaslight_usd.render.envmap.SAMPLING_WIDTH`). Supersampling
+keeps a small cluster of a light's splats from gaining power at a coarse pixel; the dome
+holds no lights (they are the SphereLights), and at the default 1024 width drawn once
+per pixel its irradiance at the 26 normals stays within 1 % of the 2048-wide draw at a
+sixth of the time (the export's ``seconds.rig``; docs/measurements.md, session 16)."""
 EVAL_WIDTH = 256
 """Lat-long width the reference irradiance is measured at (it is a smooth integral)."""
 
@@ -297,7 +305,8 @@ def write_rig(stage: Usd.Stage, root: Sdf.Path, scene: SplatScene, folder: Path,
                      radii, np.array([len(light.splats) for light in search.lights]))
     eval_width = min(EVAL_WIDTH, width)
     width = max(eval_width, (width // eval_width) * eval_width)
-    dome_pano = render_latlong(scene.subset(~mask), probe, width)
+    dome_pano = render_latlong(scene.subset(~mask), probe, width,
+                               supersample=max(1, math.ceil(DOME_SAMPLING_WIDTH / width)))
     full_pano = render_latlong(scene, probe, eval_width) if mask.any() else _downsample(
         dome_pano, eval_width)
     lights, metrics = fit_rig(scene, probe, dome_pano, full_pano, mask, tolerance,
