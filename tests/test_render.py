@@ -343,3 +343,34 @@ def test_probe_sees_splats_on_the_right_faces():
     near = SplatScene.from_activated(np.array([[0.0, 0, 0]]), np.array([[5.0, 5, 5]]),
                                      np.full((1, 3), 0.3), np.array([0.9]))
     assert render_cube(near, [0, 0, 0], 8).max() == 0
+
+
+def test_a_panorama_drawn_again_comes_from_the_last_draw_and_a_changed_scene_does_not(
+        monkeypatch):
+    """``run``'s export and its ``hdri`` stage draw the same probe 2048 wide; the second
+    is the first box-filtered again, while any change to the splats or the probe redraws."""
+    from gaslight_usd.render import envmap
+
+    rng = np.random.default_rng(1)
+    n = 200
+    scene = SplatScene.from_activated(rng.normal(0, 1.0, (n, 3)) + [0, 0, 3.0],
+                                      rng.uniform(0.1, 2.0, (n, 3)), np.full((n, 3), 0.05),
+                                      np.full(n, 0.9), sh_degree=0)
+    draws = []
+    real = envmap._draw_fine
+    monkeypatch.setattr(envmap, "_draw_fine", lambda *a: draws.append(a[2]) or real(*a))
+    envmap._FINE_DRAWN.clear()
+    small = render_latlong(scene, [0.0, 0.0, 0.0], 16, supersample=8)
+    large = render_latlong(scene, [0.0, 0.0, 0.0], 64, supersample=2)
+    assert draws == [128]
+    np.testing.assert_allclose(small, large.reshape(8, 4, 16, 4, 3).mean(axis=(1, 3)),
+                               rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(large, render_latlong(scene, [0.0, 0.0, 0.0], 64,
+                                                     supersample=2))
+    assert draws == [128]
+    brighter = SplatScene.from_activated(scene.positions, scene.base_colours * 2.0,
+                                         scene.scales, scene.opacities, sh_degree=0)
+    twice = render_latlong(brighter, [0.0, 0.0, 0.0], 64, supersample=2)
+    render_latlong(brighter, [0.0, 0.1, 0.0], 64, supersample=2)
+    assert draws == [128, 128, 128]
+    np.testing.assert_allclose(twice, 2.0 * large, rtol=1e-4, atol=1e-5)

@@ -38,6 +38,7 @@ splats close to the probe may show small seams.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import replace
 from functools import lru_cache
@@ -175,9 +176,46 @@ def render_latlong(scene: SplatScene | SplatParams, position, width: int,
     if width % 2:
         s = 1  # an odd width's height (width // 2) has no s-fold refinement
     fine = int(width) * s
-    cams, feeds = _latlong_lookup(fine)
     pos = np.asarray(position, np.float64).reshape(3)
     params = _params(scene, device)
+    key = _fine_key(params, pos, fine, near, rotation)
+    out = _FINE_DRAWN.get(key)
+    if out is None:
+        out = _draw_fine(params, pos, fine, near, rotation)
+        _FINE_DRAWN.clear()  # one kept: a run draws the same probe twice in a row at most
+        _FINE_DRAWN[key] = out
+    out = out.copy()
+    if s > 1:
+        out = out.reshape(width // 2, s, width, s, 3).mean(axis=(1, 3), dtype=np.float64)
+    return out.astype(np.float32)
+
+
+_FINE_DRAWN: dict[bytes, np.ndarray] = {}
+"""The last fine panorama drawn (:func:`render_latlong`), by :func:`_fine_key`: ``run``'s
+export draws the whole scene at the default probe for its light rig (256 wide, 8-fold)
+and its ``hdri`` stage draws it again (1024 wide, 2-fold), both 2048 wide before the
+box filter."""
+
+
+def _fine_key(params: SplatParams, pos: np.ndarray, fine: int, near: float,
+              rotation: np.ndarray | None) -> bytes:
+    """A digest of everything a fine panorama depends on (splats' tensors included)."""
+    h = hashlib.blake2b(digest_size=20)
+    for t in (params.means, params.quats, params.log_scales, params.opacity_logits,
+              params.sh_dc, params.sh_rest):
+        a = t.detach().cpu().contiguous().numpy()
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    h.update(np.asarray(pos, np.float64).tobytes())
+    h.update(np.asarray(rotation if rotation is not None else np.eye(3), np.float64).tobytes())
+    h.update(f"{fine} {near!r} {params.antialiased} {params.means.device}".encode())
+    return h.digest()
+
+
+def _draw_fine(params: SplatParams, pos: np.ndarray, fine: int, near: float,
+               rotation: np.ndarray | None) -> np.ndarray:
+    """(fine // 2, fine, 3) float32 lat-long, one lookup per pixel."""
+    cams, feeds = _latlong_lookup(fine)
     out = np.zeros((fine // 2 * fine, 3), np.float32)
     with torch.no_grad():
         for cam, (idx, x, y, w) in zip(cams, feeds, strict=True):
@@ -185,10 +223,7 @@ def render_latlong(scene: SplatScene | SplatParams, position, width: int,
             placed = replace(cam, R=rot, t=-rot @ pos)
             image = render(params, placed, background=0.0, near=near).image.cpu().numpy()
             out[idx] += w * bilinear(image, x, y, wrap_x=False)
-    out = out.reshape(fine // 2, fine, 3)
-    if s > 1:
-        out = out.reshape(width // 2, s, width, s, 3).mean(axis=(1, 3), dtype=np.float64)
-    return out.astype(np.float32)
+    return out.reshape(fine // 2, fine, 3)
 
 
 def _face_lookup(directions: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
