@@ -11,13 +11,18 @@ Its clipped outline is still there in every photo that frames it: a small whole 
 over that photo's white, a cone from the camera (:mod:`gaslight_usd.sightings`, each
 view over its own white). Two such cones from views at least
 :data:`gaslight_usd.sightings.MIN_BASELINE_DEG` apart whose centroid rays meet inside
-both cones give a candidate point; a candidate stands when the cones of at least
-:data:`MIN_SUPPORT_SHARE` of the views that frame it hold it (a bulb is seen wherever
-it is framed, bar an occluder; two specks of noise meet by chance and no third view
-agrees). Stood candidates are taken most-agreed first (share, then views), each placed where its
+both cones give a candidate point; a candidate stands when at least :data:`MIN_VIEWS`
+views, and :data:`MIN_SUPPORT_SHARE` of the views that frame it (a view where it lies
+in a cut or broad region says nothing), hold it: a bulb is seen wherever it is framed,
+bar an occluder; two specks of noise meet by chance and no third view agrees. Stood
+candidates are taken most-agreed first (share, then views), each placed where its
 holding views' rays meet (least squares), and the others within :data:`MERGE_SIZES`
-sizes of it dropped. Each light gets :data:`POINTS_PER_LIGHT` points in a ball of its
-outline's size there, coloured by the brightest of its views at that point.
+sizes of it dropped. The fit starts :data:`POINTS_PER_LIGHT` points in a ball of the
+outline's size on each light its other initial points leave bare (:func:`seed_points`,
+:meth:`LightSeedPoints.missing_from`), and records the lights in the splats' metadata
+(``light_seeds``): one clipped in every view that frames it is a light to
+:func:`gaslight_usd.lights.search_lights`. ``gaslight2usd bench --suite chain --scene
+bulb`` measures what it buys.
 
 Broad lights (outlines wider than :data:`MAX_CONE_DEG`: windows, big panels) are left
 to the surface fill, which puts them on their walls.

@@ -111,6 +111,7 @@ class Trainer:
         # the training views' mean: the random background's scale and the idle-prune level
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
+        self._seeds: list[LightSeed] | None = None
 
     # -- state -------------------------------------------------------------------
     def _fresh(self) -> None:
@@ -408,9 +409,10 @@ class Trainer:
         return cut_lights(self.data.cameras, ratios, self.data.names)
 
     def _view_whites(self, views: list[int]) -> np.ndarray | None:
-        """Each of ``views``' white (:func:`gaslight_usd.sightings.view_whites`; a view
-        that clipped nothing: the median of the views' brightest clip floors), or None
-        when no view clipped."""
+        """Each of ``views``' white, or None when no view clipped: its full-size clip
+        floors' median when the views were read from files (:attr:`FitData.peaks`),
+        else its fitting-size ones' (:func:`gaslight_usd.sightings.view_whites`); a view
+        that clipped nothing gets the median of the others'."""
         floors = [self.data.floor(i) for i in range(len(self.data.images))]
         whites = [float(f.max()) for f in floors if f is not None]
         if not whites:
@@ -430,7 +432,7 @@ class Trainer:
         """The compact lights the photos clipped, placed by their outlines
         (:mod:`.light_seeds`) in every view (held-out ones too: the seeds only start
         the fit, and the lights finder reads them); none when no view clipped."""
-        if getattr(self, "_seeds", None) is None:
+        if self._seeds is None:
             whites = self._view_whites(list(range(len(self.data.images))))
             self._seeds = [] if whites is None else find_light_seeds(
                 self.data.cameras, self.data.light_views(), whites,
