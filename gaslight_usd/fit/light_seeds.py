@@ -5,7 +5,7 @@ uplift fills it only a few times the white (not the thousands of times the walls
 is), so :func:`gaslight_usd.fit.init.bright_points`' brightness test passes it by and
 no initial splat sits on it. The fit moves and splits the splats it has; it does not
 make one where none is near, so the light vanishes (the chain bench's bulb room at
-``fast``: nearest splat 0.36 m from the bulb).
+``fast``: nearest splat 0.35 m from the bulb).
 
 Its clipped outline is still there in every photo that frames it: a small whole region
 over that photo's white, a cone from the camera (:mod:`gaslight_usd.sightings`, each

@@ -45,9 +45,9 @@ DOME_SAMPLING_WIDTH = 1024
 """Lat-long width the dome's panorama is at least drawn at before it is box-filtered
 (half the lights' :data:`gaslight_usd.render.envmap.SAMPLING_WIDTH`). Supersampling
 keeps a small cluster of a light's splats from gaining power at a coarse pixel; the dome
-holds no lights (they are the SphereLights), and at the default 1024 width drawn once
-per pixel its irradiance at the 26 normals stays within 1 % of the 2048-wide draw at a
-sixth of the time (the export's ``seconds.rig``; docs/measurements.md, session 16)."""
+holds no lights (they are the SphereLights), so at the default 1024 width it is drawn
+once per pixel (what that costs in irradiance and saves in the export's ``seconds.rig``:
+docs/measurements.md, "the export's dome")."""
 EVAL_WIDTH = 256
 """Lat-long width the reference irradiance is measured at (it is a smooth integral)."""
 
