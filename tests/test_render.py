@@ -3,6 +3,7 @@ OpenEXR's cube-map convention."""
 
 from __future__ import annotations
 
+import importlib
 import shutil
 import subprocess
 
@@ -128,6 +129,42 @@ def test_tiled_matches_dense_reference_values_and_gradients(tile, rasterizer, mo
     for k in g_a:
         scale = float(g_b[k].abs().max())
         assert float((g_a[k] - g_b[k]).abs().max()) <= 2e-5 * scale + 1e-6, k
+
+
+@pytest.mark.parametrize("antialiased", [False, True])
+def test_frustum_precull_keeps_every_splat_the_full_projection_draws(antialiased, monkeypatch):
+    """The cheap cull before the covariance work may only drop splats the full
+    projection would drop: narrow, wide and off-axis views render the same pixels with
+    and without it, and the narrow view's cull leaves few splats to project."""
+    proj_mod = importlib.import_module("gaslight_usd.render.project")
+
+    rng = np.random.default_rng(4)
+    scene = random_scene(3000, rng, sh_degree=0)
+    scene.positions[:] = rng.uniform(-3, 3, (3000, 3)).astype(np.float32)
+    scene.log_scales[:] = np.log(rng.uniform(0.005, 0.4, (3000, 3))).astype(np.float32)
+    scene.metadata = {"antialiased": antialiased}
+    params = SplatParams.from_scene(scene)
+    views = [camera(24, 12.0), camera(16, 200.0), *cube_face_cameras([0.3, -0.2, 0.1], 12),
+             PinholeCamera(40, 30, 30.0, 30.0, 5.0, 28.0, np.eye(3), np.array([0.5, 0, 1]))]
+    real = proj_mod.frustum_candidates
+    kept = []
+
+    def spy(means, *args):
+        keep = real(means, *args)
+        kept.append(int(keep.sum()))
+        return keep
+
+    def in_front(means, log_scales, opacity_logits, R, t, cam, near):
+        return (means @ R[2] + t[2]) > near
+
+    for cam in views:
+        monkeypatch.setattr(proj_mod, "frustum_candidates", spy)
+        culled = render(params, cam, background=0.1)
+        monkeypatch.setattr(proj_mod, "frustum_candidates", in_front)
+        full = render(params, cam, background=0.1)
+        assert torch.equal(torch.sort(culled.index).values, torch.sort(full.index).values)
+        torch.testing.assert_close(culled.image, full.image, atol=1e-6, rtol=1e-5)
+    assert kept[1] < 0.1 * scene.count  # the narrow view (about half are in front)
 
 
 def _opaque_stack_gradients(threads: int) -> tuple[torch.Tensor, dict]:

@@ -17,6 +17,7 @@ panorama has 0.7 deg pixels.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -65,6 +66,37 @@ def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
     ], dim=-1).reshape(-1, 3, 3)
 
 
+MAX_LEVEL = 2.0 * math.log(255.0)
+"""The largest Mahalanobis level a splat can reach 1/255 at (an opaque one)."""
+
+
+def frustum_candidates(means: torch.Tensor, log_scales: torch.Tensor,
+                       opacity_logits: torch.Tensor, R: torch.Tensor, t: torch.Tensor,
+                       camera: PinholeCamera, near: float) -> torch.Tensor:
+    """(N,) bool: the splats that may be visible, a superset of what :func:`project` keeps.
+
+    The cheap test runs on every splat before the costly covariance work, which then
+    only runs on these: a small cube face or a narrow aimed view sees a few percent of
+    a room (the light weighing draws hundreds of them). Conservative by construction:
+    a splat's screen covariance is at most ``(f s / z)^2 (1 + lim^2)`` along an axis
+    (``s`` its largest scale, ``lim`` the clamped Jacobian's slope), so its extent is
+    at most ``sqrt(MAX_LEVEL (that + DILATION))``; its opacity only falls further in
+    the antialiased mode."""
+    cam = means @ R.T + t
+    z = cam[:, 2]
+    keep = (z > near) & (opacity_logits > math.log(ALPHA_MIN / (1.0 - ALPHA_MIN)))
+    inv_z = 1.0 / z.clamp_min(near)
+    s = torch.exp(log_scales.max(dim=1).values)
+    lim_x = 1.3 * max(camera.cx, camera.width - camera.cx) / camera.fx
+    lim_y = 1.3 * max(camera.cy, camera.height - camera.cy) / camera.fy
+    for axis, f, c, size, lim in ((0, camera.fx, camera.cx, camera.width, lim_x),
+                                  (1, camera.fy, camera.cy, camera.height, lim_y)):
+        pos = f * cam[:, axis] * inv_z + c
+        reach = torch.sqrt(MAX_LEVEL * ((f * s * inv_z) ** 2 * (1.0 + lim * lim) + DILATION))
+        keep &= (pos + reach + 1e-3 > 0) & (pos - reach - 1e-3 < size)
+    return keep
+
+
 def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
             opacity_logits: torch.Tensor, sh: torch.Tensor, camera: PinholeCamera,
             sh_degree: int | None = None, near: float = DEFAULT_NEAR,
@@ -84,8 +116,7 @@ def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
         R, t = pose
         center = -(R.T @ t)
     with torch.no_grad():
-        z_all = means @ R[2] + t[2]
-        keep = z_all > near
+        keep = frustum_candidates(means, log_scales, opacity_logits, R, t, camera, near)
     index = torch.nonzero(keep).squeeze(1)
     m = means[index]
     cam = m @ R.T + t
