@@ -60,8 +60,7 @@ import numpy as np
 import torch
 from scipy import ndimage
 from scipy.spatial import cKDTree
-from scipy.special import expit
-from scipy.stats import norm
+from scipy.special import expit, log_ndtr
 
 from ..cameras import PinholeCamera
 from ..render import SplatParams, render
@@ -114,6 +113,15 @@ FALSE_BOUND_SHARE = 0.05
 for a light in front of the surface): :func:`censored_fit`."""
 GENUINE_LOGIT = math.log1p(-FALSE_BOUND_SHARE) - math.log(FALSE_BOUND_SHARE)
 """The prior log-odds that a bound is genuine."""
+
+
+def _normal_logsf(a: np.ndarray) -> np.ndarray:
+    """log P(Z > a) for a standard normal (``scipy.stats`` costs a second to import)."""
+    return log_ndtr(-a)
+
+
+def _normal_logpdf(a: np.ndarray) -> np.ndarray:
+    return -0.5 * a * a - 0.5 * math.log(2.0 * math.pi)
 
 
 @dataclass
@@ -377,9 +385,9 @@ def censored_fit(y: np.ndarray, c: np.ndarray, iterations: int = 25
                                MIN_SIGMA ** 2))
     for _ in range(iterations if cens.any() else 1):
         a = (cc - mu[:, None]) / sigma[:, None]
-        log_sf = norm.logsf(a)
+        log_sf = _normal_logsf(a)
         genuine = np.where(cens, expit(log_sf + GENUINE_LOGIT), 0.0)
-        lam = np.exp(norm.logpdf(a) - log_sf)
+        lam = np.exp(_normal_logpdf(a) - log_sf)
         e1 = mu[:, None] + sigma[:, None] * lam
         e2 = sigma[:, None] ** 2 * np.maximum(1.0 + a * lam - lam ** 2, 0.0) + e1 ** 2
         n = known.sum(1) + genuine.sum(1)
@@ -389,7 +397,7 @@ def censored_fit(y: np.ndarray, c: np.ndarray, iterations: int = 25
     z = (yk - mu[:, None]) / sigma[:, None]
     nll = (np.where(known, np.log(sigma[:, None]) + 0.5 * z ** 2, 0.0).sum(1)
            - np.where(cens, np.logaddexp(
-               math.log1p(-FALSE_BOUND_SHARE) + norm.logsf((cc - mu[:, None]) / sigma[:, None]),
+               math.log1p(-FALSE_BOUND_SHARE) + _normal_logsf((cc - mu[:, None]) / sigma[:, None]),
                math.log(FALSE_BOUND_SHARE)), 0.0).sum(1))
     return mu, sigma, nll / np.maximum((known | cens).sum(1), 1)
 

@@ -70,6 +70,33 @@ MAX_LEVEL = 2.0 * math.log(255.0)
 """The largest Mahalanobis level a splat can reach 1/255 at (an opaque one)."""
 
 
+def jacobian_limits(camera: PinholeCamera) -> tuple[float, float]:
+    """How far off-axis (x/z, y/z) the projection's Jacobian is evaluated: 1.3x the
+    field of view, as 3DGS does, so splats far outside the frame do not blow up."""
+    return (1.3 * max(camera.cx, camera.width - camera.cx) / camera.fx,
+            1.3 * max(camera.cy, camera.height - camera.cy) / camera.fy)
+
+
+def in_frustum(cam: torch.Tensor, max_scale: torch.Tensor, opacity_ok: torch.Tensor,
+               intrinsics: torch.Tensor, limits: torch.Tensor, size: tuple[int, int],
+               near: float) -> torch.Tensor:
+    """(..., N) bool from camera-space centres ``cam`` (..., N, 3): the splats that may
+    be visible, a superset of what :func:`project` keeps (:func:`frustum_candidates`).
+    ``intrinsics`` (..., 1, 4) fx fy cx cy and ``limits`` (..., 1, 2) broadcast over
+    the splats; ``size`` is (width, height)."""
+    z = cam[..., 2]
+    keep = (z > near) & opacity_ok
+    inv_z = 1.0 / z.clamp_min(near)
+    for axis in (0, 1):
+        f, c = intrinsics[..., axis], intrinsics[..., 2 + axis]
+        lim = limits[..., axis]
+        pos = f * cam[..., axis] * inv_z + c
+        reach = torch.sqrt(MAX_LEVEL * ((f * max_scale * inv_z) ** 2 * (1.0 + lim * lim)
+                                        + DILATION))
+        keep &= (pos + reach + 1e-3 > 0) & (pos - reach - 1e-3 < size[axis])
+    return keep
+
+
 def frustum_candidates(means: torch.Tensor, log_scales: torch.Tensor,
                        opacity_logits: torch.Tensor, R: torch.Tensor, t: torch.Tensor,
                        camera: PinholeCamera, near: float) -> torch.Tensor:
@@ -82,19 +109,75 @@ def frustum_candidates(means: torch.Tensor, log_scales: torch.Tensor,
     (``s`` its largest scale, ``lim`` the clamped Jacobian's slope), so its extent is
     at most ``sqrt(MAX_LEVEL (that + DILATION))``; its opacity only falls further in
     the antialiased mode."""
-    cam = means @ R.T + t
-    z = cam[:, 2]
-    keep = (z > near) & (opacity_logits > math.log(ALPHA_MIN / (1.0 - ALPHA_MIN)))
-    inv_z = 1.0 / z.clamp_min(near)
-    s = torch.exp(log_scales.max(dim=1).values)
-    lim_x = 1.3 * max(camera.cx, camera.width - camera.cx) / camera.fx
-    lim_y = 1.3 * max(camera.cy, camera.height - camera.cy) / camera.fy
-    for axis, f, c, size, lim in ((0, camera.fx, camera.cx, camera.width, lim_x),
-                                  (1, camera.fy, camera.cy, camera.height, lim_y)):
-        pos = f * cam[:, axis] * inv_z + c
-        reach = torch.sqrt(MAX_LEVEL * ((f * s * inv_z) ** 2 * (1.0 + lim * lim) + DILATION))
-        keep &= (pos + reach + 1e-3 > 0) & (pos - reach - 1e-3 < size)
-    return keep
+    dev, dt = means.device, means.dtype
+    intr = torch.tensor([[camera.fx, camera.fy, camera.cx, camera.cy]], dtype=dt, device=dev)
+    lims = torch.tensor([jacobian_limits(camera)], dtype=dt, device=dev)
+    return in_frustum(means @ R.T + t, torch.exp(log_scales.max(dim=1).values),
+                      opacity_logits > OPACITY_LOGIT_MIN, intr, lims,
+                      (camera.width, camera.height), near)
+
+
+OPACITY_LOGIT_MIN = math.log(ALPHA_MIN / (1.0 - ALPHA_MIN))
+"""Under this opacity logit a splat never reaches 1/255 anywhere."""
+
+
+@dataclass
+class ScreenGaussians:
+    """2D Gaussians of splats in camera space (one row per splat, or per (camera,
+    splat) pair when projecting into many cameras at once)."""
+
+    uv: torch.Tensor
+    depths: torch.Tensor
+    conics: torch.Tensor
+    opacities: torch.Tensor
+    extents: torch.Tensor
+
+
+def screen_gaussians(cam: torch.Tensor, R: torch.Tensor, quats: torch.Tensor,
+                     log_scales: torch.Tensor, opacity_logits: torch.Tensor,
+                     intrinsics: torch.Tensor, limits: torch.Tensor, antialiased: bool
+                     ) -> ScreenGaussians:
+    """The EWA projection (module docstring) of splats whose centres are ``cam`` (M, 3)
+    in camera space, ``R`` the world-to-camera rotation (3, 3) or one per row (M, 3, 3);
+    ``intrinsics`` fx fy cx cy and ``limits`` (:func:`jacobian_limits`) as (4,) / (2,)
+    or one row each (M, 4) / (M, 2). Differentiable."""
+    x, y, z = cam.unbind(-1)
+    fx, fy, cx, cy = intrinsics.unbind(-1)
+    lim_x, lim_y = limits.unbind(-1)
+    inv_z = 1.0 / z
+    u = fx * x * inv_z + cx
+    v = fy * y * inv_z + cy
+    tx = torch.minimum(torch.maximum(x * inv_z, -lim_x), lim_x) * z
+    ty = torch.minimum(torch.maximum(y * inv_z, -lim_y), lim_y) * z
+    zeros = torch.zeros_like(z)
+    J = torch.stack([fx * inv_z + zeros, zeros, -fx * tx * inv_z * inv_z,
+                     zeros, fy * inv_z + zeros, -fy * ty * inv_z * inv_z], -1).reshape(-1, 2, 3)
+    rot = quat_to_rotmat(quats)
+    M = rot * torch.exp(log_scales)[:, None, :]  # R S
+    T = J @ (R if R.dim() == 3 else R[None]) @ M  # (M, 2, 3)
+    cov = T @ T.transpose(1, 2)
+    a = cov[:, 0, 0] + DILATION
+    b = cov[:, 0, 1]
+    c = cov[:, 1, 1] + DILATION
+    det = (a * c - b * b).clamp_min(1e-12)
+    conics = torch.stack([c / det, -b / det, a / det], -1)
+    opac = torch.sigmoid(opacity_logits)
+    if antialiased:
+        det_raw = (cov[:, 0, 0] * cov[:, 1, 1] - b * b).clamp_min(0.0)
+        opac = opac * torch.sqrt(det_raw / det + 1e-12)
+    with torch.no_grad():
+        # Mahalanobis level where opacity * exp(-0.5 k) falls to 1/255.
+        level = 2.0 * torch.log((opac * 255.0).clamp_min(1.0))
+        ext = torch.stack([torch.sqrt(level * a), torch.sqrt(level * c)], -1) + 1e-3
+    return ScreenGaussians(torch.stack([u, v], -1), z, conics, opac, ext)
+
+
+def on_screen(g: ScreenGaussians, width: int, height: int) -> torch.Tensor:
+    """(M,) bool: reaches 1/255 somewhere and overlaps the ``width`` x ``height`` frame."""
+    u, v = g.uv.unbind(-1)
+    return ((g.opacities > ALPHA_MIN) & (u + g.extents[:, 0] > 0)
+            & (u - g.extents[:, 0] < width) & (v + g.extents[:, 1] > 0)
+            & (v - g.extents[:, 1] < height))
 
 
 def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
@@ -119,43 +202,16 @@ def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
         keep = frustum_candidates(means, log_scales, opacity_logits, R, t, camera, near)
     index = torch.nonzero(keep).squeeze(1)
     m = means[index]
-    cam = m @ R.T + t
-    x, y, z = cam.unbind(-1)
-    fx, fy, cx, cy = camera.fx, camera.fy, camera.cx, camera.cy
-    inv_z = 1.0 / z
-    u = fx * x * inv_z + cx
-    v = fy * y * inv_z + cy
-    lim_x = 1.3 * max(cx, camera.width - cx) / fx
-    lim_y = 1.3 * max(cy, camera.height - cy) / fy
-    tx = (x * inv_z).clamp(-lim_x, lim_x) * z
-    ty = (y * inv_z).clamp(-lim_y, lim_y) * z
-    zeros = torch.zeros_like(z)
-    J = torch.stack([fx * inv_z, zeros, -fx * tx * inv_z * inv_z,
-                     zeros, fy * inv_z, -fy * ty * inv_z * inv_z], -1).reshape(-1, 2, 3)
-    rot = quat_to_rotmat(quats[index])
-    M = rot * torch.exp(log_scales[index])[:, None, :]  # R S
-    T = J @ R[None] @ M  # (M, 2, 3)
-    cov = T @ T.transpose(1, 2)
-    a = cov[:, 0, 0] + DILATION
-    b = cov[:, 0, 1]
-    c = cov[:, 1, 1] + DILATION
-    det = (a * c - b * b).clamp_min(1e-12)
-    conics = torch.stack([c / det, -b / det, a / det], -1)
-    opac = torch.sigmoid(opacity_logits[index])
-    if antialiased:
-        det_raw = (cov[:, 0, 0] * cov[:, 1, 1] - b * b).clamp_min(0.0)
-        opac = opac * torch.sqrt(det_raw / det + 1e-12)
+    intr = torch.tensor([camera.fx, camera.fy, camera.cx, camera.cy], dtype=dt, device=dev)
+    lims = torch.tensor(jacobian_limits(camera), dtype=dt, device=dev)
+    g = screen_gaussians(m @ R.T + t, R, quats[index], log_scales[index],
+                         opacity_logits[index], intr, lims, antialiased)
     with torch.no_grad():
-        # Mahalanobis level where opacity * exp(-0.5 k) falls to 1/255.
-        level = 2.0 * torch.log((opac * 255.0).clamp_min(1.0))
-        ext = torch.stack([torch.sqrt(level * a), torch.sqrt(level * c)], -1) + 1e-3
-        visible = ((opac > ALPHA_MIN) & (u + ext[:, 0] > 0) & (u - ext[:, 0] < camera.width)
-                   & (v + ext[:, 1] > 0) & (v - ext[:, 1] < camera.height))
-        sel = torch.nonzero(visible).squeeze(1)
+        sel = torch.nonzero(on_screen(g, camera.width, camera.height)).squeeze(1)
     dirs = m[sel] - center
     dirs = dirs / dirs.norm(dim=-1, keepdim=True).clamp_min(1e-12)
     colours = eval_sh(sh[index[sel]], dirs, sh_degree)
-    return Projected(index=index[sel], means2d=torch.stack([u, v], -1)[sel],
-                     conics=conics[sel], depths=z[sel], colours=colours,
-                     opacities=opac[sel], extents=ext[sel])
+    return Projected(index=index[sel], means2d=g.uv[sel], conics=g.conics[sel],
+                     depths=g.depths[sel], colours=colours, opacities=g.opacities[sel],
+                     extents=g.extents[sel])
 
