@@ -64,7 +64,8 @@ from scipy.special import expit, log_ndtr
 
 from ..cameras import PinholeCamera
 from ..render import SplatParams, render
-from ..render.envmap import cube_face_cameras, render_cube
+from ..render.envmap import cube_face_cameras
+from ..render.many import render_many
 from ..splats import SplatScene, rgb_to_sh_dc, sh_dc_to_rgb
 from .data import scale_camera_to
 
@@ -88,6 +89,8 @@ it in (:func:`clipped_extent`), is at most this share of the captured space's me
 depth (a bulb, a shade, a 0.4 m panel in a 2.5 m room; not a window)."""
 CUBE_SIZE = 12
 LIGHT_VIEW_SIZE = 24
+POINTS_PER_BATCH = 64
+"""Surface points whose cube maps are drawn in one pass (:mod:`gaslight_usd.render.many`)."""
 SAMPLE_POINTS = 400
 """Surface points gathered (their irradiance costs a cube map and an aimed view each)."""
 NEIGHBOURS = 16
@@ -346,22 +349,27 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
         cube_omega.append(o)
     cube_dirs, cube_omega = np.concatenate(cube_dirs), np.concatenate(cube_omega)
     out = np.full((len(points), 1 + len(groups)), np.nan)
-    for p, (x, n, off) in enumerate(zip(points, normals, offsets, strict=True)):
-        eye = x + n * off
-        cube = render_cube(rest, eye, CUBE_SIZE, near=0.5 * off).reshape(-1, 3)
-        out[p, 0] = float((np.clip(cube_dirs @ n, 0, None) * cube_omega) @ cube[:, 0])
-        for j, (c, r) in enumerate(zip(centres, radii, strict=True)):
-            dist = float(np.linalg.norm(c - eye))
-            if dist < 2.0 * r:
-                continue
-            cam = aimed_camera(eye, c, math.asin(min(0.99, r / dist)) * 1.2, LIGHT_VIEW_SIZE)
-            params = rest if j < 2 else extra[(j - 2) // 3]
-            channel = 1 + j if j < 2 else (j - 2) % 3
-            with torch.no_grad():
-                img = render(params, cam, background=0.0, near=0.5 * off).image.cpu().numpy()
+    eyes = points + normals * offsets[:, None]
+    nears = 0.5 * offsets
+    for lo in range(0, len(points), POINTS_PER_BATCH):
+        part = slice(lo, min(lo + POINTS_PER_BATCH, len(points)))
+        faces = [cam for eye in eyes[part] for cam in cube_face_cameras(eye, CUBE_SIZE)]
+        cubes = render_many(rest, faces, near=np.repeat(nears[part], 6))
+        cubes = cubes[..., 0].reshape(-1, 6 * CUBE_SIZE * CUBE_SIZE)
+        cosine = np.clip(normals[part] @ cube_dirs.T, 0, None)
+        out[part, 0] = np.sum(cosine * cube_omega * cubes, axis=1)
+    for j, (c, r) in enumerate(zip(centres, radii, strict=True)):
+        dist = np.linalg.norm(c - eyes, axis=1)
+        aimed = np.flatnonzero(dist >= 2.0 * r)
+        cams = [aimed_camera(eyes[p], c, math.asin(min(0.99, r / dist[p])) * 1.2,
+                             LIGHT_VIEW_SIZE) for p in aimed]
+        params = rest if j < 2 else extra[(j - 2) // 3]
+        channel = 1 + j if j < 2 else (j - 2) % 3
+        images = render_many(params, cams, near=nears[aimed])
+        for k, (p, cam) in enumerate(zip(aimed, cams, strict=True)):
             d, o = pixel_directions(cam)
-            out[p, 1 + j] = float((np.clip(d @ n, 0, None) * o) @
-                                  img.reshape(-1, 3)[:, channel])
+            out[p, 1 + j] = float((np.clip(d @ normals[p], 0, None) * o) @
+                                  images[k].reshape(-1, 3)[:, channel])
     return out
 
 

@@ -79,14 +79,14 @@ def jacobian_limits(camera: PinholeCamera) -> tuple[float, float]:
 
 def in_frustum(cam: torch.Tensor, max_scale: torch.Tensor, opacity_ok: torch.Tensor,
                intrinsics: torch.Tensor, limits: torch.Tensor, size: tuple[int, int],
-               near: float) -> torch.Tensor:
+               near: float | torch.Tensor) -> torch.Tensor:
     """(..., N) bool from camera-space centres ``cam`` (..., N, 3): the splats that may
     be visible, a superset of what :func:`project` keeps (:func:`frustum_candidates`).
     ``intrinsics`` (..., 1, 4) fx fy cx cy and ``limits`` (..., 1, 2) broadcast over
-    the splats; ``size`` is (width, height)."""
+    the splats, as does ``near`` when a tensor; ``size`` is (width, height)."""
     z = cam[..., 2]
     keep = (z > near) & opacity_ok
-    inv_z = 1.0 / z.clamp_min(near)
+    inv_z = 1.0 / torch.maximum(z, torch.as_tensor(near, dtype=z.dtype, device=z.device))
     for axis in (0, 1):
         f, c = intrinsics[..., axis], intrinsics[..., 2 + axis]
         lim = limits[..., axis]

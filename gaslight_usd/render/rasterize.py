@@ -29,16 +29,23 @@ GROUP_ELEMENTS = 12_000_000
 
 
 def tile_pairs(means2d: torch.Tensor, extents: torch.Tensor, depths: torch.Tensor,
-               tiles_x: int, tiles_y: int, tile: int) -> tuple[torch.Tensor, torch.Tensor]:
+               tiles_x: int, tiles_y: int, tile: int,
+               x_tiles: tuple[torch.Tensor, torch.Tensor] | None = None
+               ) -> tuple[torch.Tensor, torch.Tensor]:
     """(splat, tile) pairs sorted by tile, then front to back.
 
+    ``x_tiles``: each splat's first and last tile column (default: the image's), so
+    one image can hold several views side by side (:mod:`.many`).
     Returns ``splat`` (P,) and ``tile_id`` (P,) = ty * tiles_x + tx.
     """
     with torch.no_grad():
         lo = torch.floor((means2d - extents) / tile).long()
         hi = torch.floor((means2d + extents) / tile).long()
-        x0 = lo[:, 0].clamp(0, tiles_x - 1)
-        x1 = hi[:, 0].clamp(0, tiles_x - 1)
+        first, last = x_tiles if x_tiles is not None else (0, tiles_x - 1)
+        x0 = torch.minimum(torch.maximum(lo[:, 0], torch.as_tensor(first)),
+                           torch.as_tensor(last))
+        x1 = torch.minimum(torch.maximum(hi[:, 0], torch.as_tensor(first)),
+                           torch.as_tensor(last))
         y0 = lo[:, 1].clamp(0, tiles_y - 1)
         y1 = hi[:, 1].clamp(0, tiles_y - 1)
         w = x1 - x0 + 1

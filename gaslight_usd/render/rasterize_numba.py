@@ -199,15 +199,18 @@ class _Composite(torch.autograd.Function):
 
 
 def rasterize_numba(proj: Projected, width: int, height: int, background: torch.Tensor,
-                    tile: int = TILE) -> tuple[torch.Tensor, torch.Tensor]:
+                    tile: int = TILE,
+                    pairs: tuple[torch.Tensor, torch.Tensor] | None = None
+                    ) -> tuple[torch.Tensor, torch.Tensor]:
     """Composite projected splats -> image (H, W, 3) and alpha (H, W); float32 CPU tensors.
 
     Drop-in for :func:`.rasterize.rasterize`, differentiable in the splats'
-    screen means, conics, colours, opacities and in ``background``.
+    screen means, conics, colours, opacities and in ``background``. ``pairs``: the
+    (splat, tile) pairs to composite (default: :func:`.rasterize.tile_pairs`).
     """
     tiles_x, tiles_y = -(-width // tile), -(-height // tile)
-    splat, tile_id = tile_pairs(proj.means2d, proj.extents, proj.depths, tiles_x, tiles_y,
-                                tile)
+    splat, tile_id = pairs if pairs is not None else tile_pairs(
+        proj.means2d, proj.extents, proj.depths, tiles_x, tiles_y, tile)
     counts = torch.bincount(tile_id, minlength=tiles_x * tiles_y)
     starts = np.zeros(tiles_x * tiles_y + 1, np.int64)
     np.cumsum(counts.numpy(), out=starts[1:])
