@@ -138,16 +138,26 @@ def test_power_of_a_clipped_lamp_is_inferred_from_the_floor_the_photos_measured(
     # the stated uncertainty covers the error
     assert abs(inferred - 4.0) <= 0.75
     assert abs(inferred - 4.0) <= 2.5 * sigma
-    # fused with the fill (k = 1, 3 stops): between the two, nearer the surfaces' word
-    fused = math.log2(light.factor)
-    assert 3.0 < fused <= inferred + 1e-9
-    assert light.source == "inferred" and light.uncertainty_stops <= sigma + 1e-9
+    # the fill (k = 1) is only a lower bound: over it, the surfaces' word stands whole
+    assert math.log2(light.factor) == pytest.approx(inferred)
+    assert light.source == "inferred"
+    assert light.uncertainty_stops == pytest.approx(sigma, abs=1e-3)
     assert not light.details["lower_bound"]  # the sky's light pins the albedos' scale
     lamp = light.splats
     ratio = out.base_colours[lamp].mean() / scene.base_colours[lamp].mean()
     assert abs(ratio / light.factor - 1) < 1e-4
     others = np.setdiff1d(np.arange(scene.count), lamp)
     np.testing.assert_array_equal(out.sh[others], scene.sh[others])
+
+
+def test_surfaces_that_say_less_than_the_fill_leave_the_fill_as_its_bound():
+    """The fit holds a clipped lamp at least at its fill; when its surfaces say it is
+    dimmer (here it was fitted 2x too bright), the fill stands and says so."""
+    _, out, light = _weigh(0.5)
+    assert light.details["inferred_log2_factor"] < -0.5
+    assert light.factor == 1.0 and light.source == "fused"
+    assert light.uncertainty_stops == pytest.approx(light.details["inferred_sigma_stops"],
+                                                    abs=1e-3)
 
 
 def test_the_photos_not_the_splats_colours_say_what_the_surfaces_reflect():

@@ -32,10 +32,17 @@ variance), subject to most albedos (three quarters) staying at or under 1. Where
 almost all the surfaces' light is this light's, the spread no longer depends on
 ``k`` and that cap decides: the factor is then a lower bound, and says so. The
 uncertainty (stops) is the spread of ``log2 k`` over bootstrap resamples of the
-points and :data:`SYSTEMATIC_STOPS` for what resampling cannot show. The estimate
-is fused with the uplift's (the fill, ``k = 1``, with the predictor's
-:data:`PREDICTOR_SIGMA_STOPS`) by inverse variances, and never goes under the
-fill (the fit already holds the light at or above what the photos recorded).
+points and :data:`SYSTEMATIC_STOPS` for what resampling cannot show.
+
+The estimate is fused with the uplift's fill (``k = 1``) as what the fill is for a
+clipped light: a lower bound, not a guess with errors both ways. The fit holds every
+clipped pixel at or above its clip level and the recursive uplift only raises a clipped
+region until its predicted exposure stops clipping, so the fill says "at least this"
+and nothing above it. The posterior of a normal estimate under a flat prior above the
+fill is the estimate where it is over the fill (``inferred``, its own uncertainty) and
+the fill where it is under (``fused``: the two meet at the bound). A two-sided fusion
+with :data:`PREDICTOR_SIGMA_STOPS` pulled every light towards its fill, which the
+chain bench's compact lights sat 6-10 stops over (``docs/measurements.md``, session 17).
 
 Which lights: only a light that is **clipped** (no training view measured it over
 the white) and **compact** (at most :data:`COMPACT_SHARE` of the captured space's
@@ -138,7 +145,8 @@ class LightPower:
     factor: float = 1.0
     """What its splats' radiance was multiplied by."""
     source: str = "predicted"
-    """``predicted`` (the uplift's fill), ``inferred`` (the lit surfaces), or ``fused``."""
+    """``predicted`` (the uplift's fill), ``inferred`` (the lit surfaces), or ``fused``
+    (the surfaces said less than the fill, a lower bound: the fill stands)."""
     uncertainty_stops: float = PREDICTOR_SIGMA_STOPS
     details: dict[str, Any] = field(default_factory=dict)
 
@@ -468,7 +476,8 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                       surfaces: np.ndarray, opaque: np.ndarray, extent: float,
                       seed: int = 0, bootstrap: int = 32) -> SplatScene:
     """Weigh ``lights`` (clipped, compact: :func:`lights_to_weigh`) by the surfaces they
-    light and rescale their splats by the fused factor (module docstring).
+    light and rescale their splats by the factor fused with the fill's bound (module
+    docstring).
 
     ``cameras``/``images``/``floors``: the training views (HDR, their clip floors);
     ``surfaces``: (N,) splats that may be sampled as lit surfaces (measured, inside the
@@ -532,13 +541,12 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                                      f"{MAX_INFERRED_SIGMA_STOPS:g} stops): the uplift's "
                                      "power stands")
             continue
-        w_inf, w_pred = 1 / sigma_inf ** 2, 1 / PREDICTOR_SIGMA_STOPS ** 2
-        # the fill is what the fit holds the light at, over what the photos recorded: a
-        # lower bound, so the fused factor never takes the light under it
-        log2_k = max(0.0, (w_inf * best[j]) / (w_inf + w_pred))
+        # the fill is a lower bound (module docstring): the surfaces' word above it, the
+        # fill where they say less
+        log2_k = max(0.0, float(best[j]))
         light.factor = float(2.0 ** log2_k)
-        light.uncertainty_stops = float((w_inf + w_pred) ** -0.5)
-        light.source = "inferred" if w_inf > 4 * w_pred else "fused"
+        light.uncertainty_stops = sigma_inf
+        light.source = "inferred" if best[j] > 0.0 else "fused"
         out.sh[light.splats] = scaled_sh(scene.sh[light.splats], light.factor)
     return out
 

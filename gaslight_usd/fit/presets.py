@@ -53,9 +53,10 @@ class FitConfig:
     """Fit clipped photo pixels as lower bounds (:func:`.losses.bounded_l1`), not as targets."""
     infer_power: bool = True
     """After the fit, rescale each clipped compact light (a bulb, a small panel) by the power
-    the surfaces it lights imply, as the photos measured them (:mod:`.power`), fused with
-    the uplift's fill by their uncertainties; windows and lights a view measured keep their
-    power. ``gaslight2usd bench --suite chain`` measures it (power errors per light)."""
+    the surfaces it lights imply, as the photos measured them (:mod:`.power`), never under
+    the uplift's fill (a lower bound for a clipped light); windows and lights a view
+    measured keep their power. ``gaslight2usd bench --suite chain`` measures it (power
+    errors per light)."""
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
