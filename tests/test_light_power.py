@@ -160,6 +160,22 @@ def test_surfaces_that_say_less_than_the_fill_leave_the_fill_as_its_bound():
                                                     abs=1e-3)
 
 
+def test_at_most_the_gathered_points_are_weighed_and_all_of_few(monkeypatch):
+    """Of the candidates the photos measured, GATHERED_POINTS are gathered; where fewer
+    qualify, every one is (a room that clips much keeps all it has)."""
+    from gaslight_usd.fit import power
+
+    def used(light):
+        return light.details["surface_points"] + light.details["clipped_surface_points"]
+
+    _, _, light = _weigh(16.0)
+    assert used(light) == power.GATHERED_POINTS
+    monkeypatch.setattr(power, "SAMPLE_POINTS", 150)
+    _, _, light = _weigh(16.0)
+    assert 100 <= used(light) <= 150 < power.GATHERED_POINTS
+    assert abs(light.details["inferred_log2_factor"] - 4.0) <= 0.75
+
+
 def test_the_photos_not_the_splats_colours_say_what_the_surfaces_reflect():
     """Shuffled floor splat colours leave the photos (and the answer) as they were; the
     splats' colours alone would say nothing (a uniform random texture, no lamp in it)."""

@@ -98,8 +98,14 @@ CUBE_SIZE = 12
 LIGHT_VIEW_SIZE = 24
 POINTS_PER_BATCH = 64
 """Surface points whose cube maps are drawn in one pass (:mod:`gaslight_usd.render.many`)."""
-SAMPLE_POINTS = 400
-"""Surface points gathered (their irradiance costs a cube map and an aimed view each)."""
+SAMPLE_POINTS = 1000
+"""Surface splats drawn as candidates (cheap: the photos are looked up at each)."""
+GATHERED_POINTS = 320
+"""At most this many of the candidates the photos measured are gathered (their
+irradiance costs a cube map and an aimed view each); where fewer qualify (a room whose
+photos clip or see few flat surfaces) all are used. Drawing a fixed 400 candidates
+left the shaded-lamp room 55-61 usable points and its factor's spread over the 1.5-stop
+limit in one draw of four (``docs/measurements.md``, session 17)."""
 NEIGHBOURS = 16
 """Opaque splats a sample's normal is fitted to (the smallest principal axis)."""
 FLATNESS = 0.3
@@ -496,8 +502,11 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
     radiance, bound = measured_radiance(scene, points, normals, cameras, images, floors,
                                         weights)
     seen = (np.isfinite(radiance) & (radiance > 0)) | (np.isfinite(bound) & (bound > 0))
-    cand, normals, points = cand[seen], normals[seen], points[seen]
-    radiance, bound = radiance[seen], bound[seen]
+    keep = np.flatnonzero(seen)
+    if len(keep) > GATHERED_POINTS:
+        keep = np.sort(rng.choice(keep, GATHERED_POINTS, replace=False))
+    cand, normals, points = cand[keep], normals[keep], points[keep]
+    radiance, bound = radiance[keep], bound[keep]
     if len(cand) < MIN_SAMPLES:
         for light in lights:
             light.details["note"] = (f"too few measured surfaces ({len(cand)}) to weigh it: "
