@@ -40,7 +40,10 @@ def render_many(params: SplatParams, cameras: list[PinholeCamera],
                 sh_degree: int | None = None) -> np.ndarray:
     """``(B, H, W, 3)`` float32 images of ``params`` from ``cameras`` (all the same size;
     intrinsics and poses may differ), as :func:`gaslight_usd.render.render` draws each;
-    ``near``: one for all, or one per camera."""
+    ``near``: one for all, or one per camera. CPU float32 tensors (the compiled
+    compositing kernels; the light weighing draws on the CPU whatever the fit's device)."""
+    if params.means.device.type != "cpu" or params.means.dtype != torch.float32:
+        raise ValueError("render_many draws float32 splats on the CPU")
     if not cameras:
         return np.zeros((0, 0, 0, 3), np.float32)
     width, height = cameras[0].width, cameras[0].height
