@@ -186,8 +186,10 @@ def project(means: torch.Tensor, quats: torch.Tensor, log_scales: torch.Tensor,
         R, t = pose
         center = -(R.T @ t)
     with torch.no_grad():
-        # every splat in front, not only :func:`in_frustum`'s: culling here changed what a
-        # fit converges to (tests/test_fit.py's small-lamp fit), though not any one image
+        # every splat in front, not only :func:`in_frustum`'s: fewer rows round a few
+        # values differently, and a fit is chaotic in its last bits (Adam scales an
+        # isotropic splat's noise-level quaternion gradient to full steps), so culling
+        # here gave other fits (docs/measurements.md, session 17) though no other image
         keep = (means @ R[2] + t[2]) > near
     index = torch.nonzero(keep).squeeze(1)
     m = means[index]
