@@ -300,13 +300,17 @@ def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray
     return out, bound
 
 
-def pixel_directions(cam: PinholeCamera) -> tuple[np.ndarray, np.ndarray]:
-    """World directions ``(H W, 3)`` and solid angles ``(H W,)`` of a camera's pixels."""
-    x, y = np.meshgrid(np.arange(cam.width) + 0.5, np.arange(cam.height) + 0.5)
-    u, v = (x - cam.cx) / cam.fx, (y - cam.cy) / cam.fy
-    d = np.stack([u, v, np.ones_like(u)], -1) @ cam.R  # camera -> world
+def pixel_directions(cams: list[PinholeCamera]) -> tuple[np.ndarray, np.ndarray]:
+    """World directions ``(B, H W, 3)`` and solid angles ``(B, H W)`` of the pixels of
+    ``B`` cameras of one size."""
+    x, y = np.meshgrid(np.arange(cams[0].width) + 0.5, np.arange(cams[0].height) + 0.5)
+    intr = np.array([[c.fx, c.fy, c.cx, c.cy] for c in cams], np.float64)[:, None]
+    u = (x.ravel()[None] - intr[..., 2]) / intr[..., 0]
+    v = (y.ravel()[None] - intr[..., 3]) / intr[..., 1]
+    rays = np.stack([u, v, np.ones_like(u)], -1)  # (B, HW, 3) camera frame
+    d = np.einsum("bpi,bij->bpj", rays, np.stack([c.R for c in cams]))  # camera -> world
     norm = np.linalg.norm(d, axis=-1)
-    return (d / norm[..., None]).reshape(-1, 3), (1.0 / (cam.fx * cam.fy) / norm ** 3).ravel()
+    return d / norm[..., None], 1.0 / (intr[..., 0] * intr[..., 1]) / norm ** 3
 
 
 def aimed_camera(position: np.ndarray, target: np.ndarray, half_angle: float, size: int
@@ -356,12 +360,8 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
     centres = [scene.positions[g].astype(np.float64).mean(0) for g in groups]
     radii = [float(np.linalg.norm(scene.positions[g] - c, axis=1).max()
                    + 3.0 * scene.scales[g].max()) for g, c in zip(groups, centres, strict=True)]
-    cube_dirs, cube_omega = [], []
-    for cam in cube_face_cameras(np.zeros(3), CUBE_SIZE):
-        d, o = pixel_directions(cam)
-        cube_dirs.append(d)
-        cube_omega.append(o)
-    cube_dirs, cube_omega = np.concatenate(cube_dirs), np.concatenate(cube_omega)
+    cube_dirs, cube_omega = pixel_directions(cube_face_cameras(np.zeros(3), CUBE_SIZE))
+    cube_dirs, cube_omega = cube_dirs.reshape(-1, 3), cube_omega.ravel()
     out = np.full((len(points), 1 + len(groups)), np.nan)
     eyes = points + normals * offsets[:, None]
     nears = 0.5 * offsets
@@ -379,11 +379,13 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
                              LIGHT_VIEW_SIZE) for p in aimed]
         params = rest if j < 2 else extra[(j - 2) // 3]
         channel = 1 + j if j < 2 else (j - 2) % 3
+        if not cams:
+            continue
         images = render_many(params, cams, near=nears[aimed])
-        for k, (p, cam) in enumerate(zip(aimed, cams, strict=True)):
-            d, o = pixel_directions(cam)
-            out[p, 1 + j] = float((np.clip(d @ normals[p], 0, None) * o) @
-                                  images[k].reshape(-1, 3)[:, channel])
+        d, o = pixel_directions(cams)
+        cosine = np.clip(np.einsum("bpi,bi->bp", d, normals[aimed]), 0, None)
+        out[aimed, 1 + j] = np.sum(cosine * o * images[..., channel].reshape(len(cams), -1),
+                                   axis=1)
     return out
 
 
