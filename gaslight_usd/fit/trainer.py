@@ -58,6 +58,7 @@ from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
 from .single_view import single_view_lights
+from .sunk_lights import SurfacedLights, surface_sunk_lights
 from .triangulate import triangulate_views
 
 MIN_CONTRIBUTION = 0.02
@@ -462,6 +463,26 @@ class Trainer:
         return sight_lights(self.data.cameras, self.data.light_views(), whites,
                             self.y_weights.cpu().numpy()).as_dict()
 
+    def _surface_sunk_lights(self, scene: SplatScene) -> tuple[SplatScene, SurfacedLights]:
+        """Compact lights one photo frames, sunk behind the surface they are seen through,
+        moved onto it (:mod:`.sunk_lights`); only where some view clipped (the photos'
+        light regions say which splats are such lights)."""
+        whites = self._view_whites(self.train)
+        if not self.cfg.clip_bounds or whites is None:
+            return scene, SurfacedLights(0, 0.0, 0.0, 0)
+        cams = self.cameras()
+        views = [cams[i] for i in self.train]
+        weights = self.y_weights.cpu().numpy()
+        sightings = sight_lights(views, [self.data.light_views()[i] for i in self.train],
+                                 whites, weights)
+        scene, surfaced = surface_sunk_lights(scene, views,
+                                              [self.data.images[i] for i in self.train],
+                                              whites, weights, sightings)
+        if surfaced.moved:
+            self.progress.message(f"moved {surfaced.moved} light splat(s) sunk behind the "
+                                  "surface they are seen through onto it")
+        return scene, surfaced
+
     def _weigh_clipped_lights(self, scene: SplatScene, backdrop: int,
                               floors: list[np.ndarray | None]
                               ) -> tuple[SplatScene, list[LightPower]]:
@@ -502,6 +523,7 @@ class Trainer:
         pruned = self._prune_idle()
         degree, scores = self._choose_degree()
         scene = self.model.to_scene(degree, {})
+        scene, surfaced = self._surface_sunk_lights(scene)
         cams = self.cameras()
         backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
                                    cfg.backdrop_tiles, room=cfg.budget - scene.count,
@@ -519,7 +541,7 @@ class Trainer:
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):
             scene, lights = self._weigh_clipped_lights(scene, backdrop.count, train_floors)
-        if (backdrop.count or lights) and self.held:
+        if (backdrop.count or lights or surfaced.moved) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
         metrics = {
@@ -537,6 +559,7 @@ class Trainer:
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
             "clipped_lights": [light.as_dict() for light in lights],
+            "surfaced_lights": surfaced.as_dict(),
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
             "exposure_outliers": exposure_outliers(

@@ -1,0 +1,157 @@
+"""Lights the fit sank behind the surface they are seen through, put back on it.
+
+A light only one photo frames has no parallax: the fit can put its splats anywhere
+along that photo's rays, and where the room's surface around it is well fitted (other
+photos see that ceiling or wall) it often leaves them behind it. The photo that framed
+the light is satisfied, every other view sees the surface in front of them, and from
+anywhere inside the room the light is gone: the chain bench's ``panels`` room, fitted
+from its photos, had the ceiling panel one photo frames 0.3-0.8 m above the ceiling,
+4.3 stops short at the probe under it (``docs/measurements.md``).
+
+The photos still say where it can be. A bright splat (over the white) lying in the cone
+of a compact light region of some photo (:mod:`gaslight_usd.sightings`: an outline over
+that photo's white, clear of the frame, at most
+:data:`gaslight_usd.fit.light_seeds.MAX_CONE_DEG` across) is on that photo's rays. When
+it lies outside the captured space (:mod:`gaslight_usd.capture`: the free space the
+cameras' median point sees, bounded by the fit's opaque surfaces; the lights finder
+calls what is outside backdrop and never a light), it is moved back along that photo's
+ray to where the ray leaves the space, the first place there no photo contradicts, its
+scales shrunk in proportion so that the photo draws it on the same pixels. (The fit's
+depth next to such a light, in the one photo that frames it, is no guide: it is
+smeared by the sunk splats themselves.) The move is refused where another training view
+would see the new place unoccluded and its photo saw no light there (a light in
+another room, seen through a gap, stays where the photos put it). Compact lights two
+views frame are placed by their outlines (:mod:`.light_seeds`) and lie inside the
+space; broad ones (windows) are not held by a compact outline; nothing here moves
+either.
+
+``gaslight2usd bench --suite chain --scene panels`` measures what it buys (the panels'
+power at the probes, ``light_dist_*``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cameras import PinholeCamera
+from ..capture import capture_space
+from ..sightings import Sightings
+from ..splats import SplatScene
+from ..surroundings import splat_sigma
+from .light_seeds import MAX_CONE_DEG
+from .power import depth_map
+
+RAY_STEPS = 128
+"""Samples along a sunk splat's ray where it is tested against the captured space."""
+OCCLUDED_SHARE = 0.05
+"""Another view's depth this share nearer than the moved splat hides it from that view."""
+
+
+@dataclass
+class SurfacedLights:
+    """What :func:`surface_sunk_lights` moved."""
+
+    moved: int
+    """Splats moved."""
+    power_share: float
+    """Their share of the bright splats' power (radiance x area x opacity)."""
+    mean_move: float
+    """Mean distance moved (scene units)."""
+    refused: int
+    """Sunk splats left where they were: another view saw no light at the new place."""
+
+    def as_dict(self) -> dict:
+        return {"moved": self.moved, "power_share": round(self.power_share, 4),
+                "mean_move": round(self.mean_move, 4), "refused": self.refused}
+
+
+def _pixels(cam: PinholeCamera, points: np.ndarray, shape: tuple[int, ...]
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Row, column (clipped to the image), depth and whether inside, for ``points``
+    in ``cam`` drawn at ``shape``."""
+    uv, z = cam.project(points)
+    h, w = shape[:2]
+    x = np.floor(uv[:, 0] * w / cam.width)
+    y = np.floor(uv[:, 1] * h / cam.height)
+    inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    return (np.clip(np.nan_to_num(y), 0, h - 1).astype(np.int64),
+            np.clip(np.nan_to_num(x), 0, w - 1).astype(np.int64), z, inside)
+
+
+def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
+                        images: list[np.ndarray], whites: np.ndarray, weights: np.ndarray,
+                        sightings: Sightings) -> tuple[SplatScene, SurfacedLights]:
+    """``scene`` with its sunk bright splats moved onto the surface they are seen
+    through (module docstring), and what moved. ``cameras``/``images``: the training
+    views (any size, framing as the cameras); ``whites`` (V,): each view's white, in
+    its image's units; ``weights``: luminance weights; ``sightings``: the views' light
+    regions (:func:`gaslight_usd.sightings.sight_lights`, same views)."""
+    lum = scene.base_colours @ np.asarray(weights, np.float32)
+    nothing = SurfacedLights(0, 0.0, 0.0, 0)
+    compact = np.flatnonzero(sightings.whole
+                             & (sightings.radii <= np.radians(MAX_CONE_DEG)))
+    bright = np.flatnonzero((lum > float(np.median(whites))) & (scene.opacities > 0.05))
+    if not len(bright) or not len(compact) or len(cameras) < 2:
+        return scene, nothing
+    pos = scene.positions.astype(np.float64)
+    image_lum = [np.asarray(im, np.float32) @ np.asarray(weights, np.float32)
+                 for im in images]
+    # the view whose compact outline holds each bright splat (nearest its axis)
+    angle = sightings.angles(pos[bright])[:, compact] / sightings.radii[compact][None]
+    nearest = np.argmin(angle, axis=1)
+    held = angle[np.arange(len(bright)), nearest] <= 1.0
+    best_view = np.where(held, sightings.view[compact][nearest], -1)
+    probe = scene.subset(np.arange(scene.count))
+    probe.metadata = {**scene.metadata, "exposure_scale": float(np.median(whites))}
+    space = capture_space(probe, np.array([cam.center for cam in cameras]))
+    sigma = splat_sigma(scene)
+    outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
+    target = pos.copy()
+    sunk = np.zeros(scene.count, bool)
+    for v in np.unique(best_view[(best_view >= 0) & outside]):
+        idx = bright[(best_view == v) & outside]
+        eye = cameras[v].center
+        t = np.linspace(0.0, 1.0, RAY_STEPS + 1)[1:]
+        along = eye + (pos[idx] - eye)[:, None, :] * t[None, :, None]  # (K, S, 3)
+        # the last sample before the ray first leaves the space, each sample with the
+        # reach the lights finder gives a splat (two sigmas) shrunk to its distance there
+        reach = 2.0 * sigma[idx][:, None] * t[None]
+        inside = space.inside(along.reshape(-1, 3), reach.ravel()).reshape(len(idx), -1)
+        first_out = np.argmin(inside, axis=1)
+        ok = inside[:, 0] & ~inside[np.arange(len(idx)), -1]
+        keep = idx[ok]
+        target[keep] = eye + (pos[keep] - eye) * t[first_out[ok] - 1][:, None]
+        sunk[keep] = True
+    if not sunk.any():
+        return scene, nothing
+    idx = np.flatnonzero(sunk)
+    refused = np.zeros(len(idx), bool)
+    for v, (cam, y) in enumerate(zip(cameras, image_lum, strict=True)):
+        row, col, z, inside = _pixels(cam, target[idx], y.shape)
+        if not inside.any():
+            continue
+        depth = depth_map(scene, cam)
+        drow, dcol, _, _ = _pixels(cam, target[idx], depth.shape)
+        open_view = inside & (depth[drow, dcol] >= z * (1.0 - OCCLUDED_SHARE))
+        refused |= open_view & (y[row, col] < whites[v])
+    idx_moved = idx[~refused]
+    area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
+    power = lum * area
+    out = scene.subset(np.arange(scene.count))
+    if len(idx_moved):
+        eye = np.array([cameras[v].center for v in best_view[np.searchsorted(bright,
+                                                                             idx_moved)]])
+        ratio = (np.linalg.norm(target[idx_moved] - eye, axis=1)
+                 / np.maximum(np.linalg.norm(pos[idx_moved] - eye, axis=1), 1e-12))
+        out.positions[idx_moved] = target[idx_moved].astype(out.positions.dtype)
+        out.log_scales[idx_moved] = (scene.log_scales[idx_moved]
+                                     + np.log(ratio)[:, None]).astype(out.log_scales.dtype)
+    report = SurfacedLights(
+        moved=int(len(idx_moved)),
+        power_share=float(power[idx_moved].sum() / max(power[bright].sum(), 1e-30)),
+        mean_move=float(np.linalg.norm(target[idx_moved] - pos[idx_moved], axis=1).mean())
+        if len(idx_moved) else 0.0,
+        refused=int(refused.sum()))
+    return out, report

@@ -1,0 +1,125 @@
+"""A light one photo frames, fitted behind the ceiling, is put back on it
+(gaslight_usd.fit.sunk_lights)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gaslight_usd.cameras import PinholeCamera
+from gaslight_usd.colour import REC709_Y
+from gaslight_usd.fit.power import aimed_camera
+from gaslight_usd.fit.sunk_lights import surface_sunk_lights
+from gaslight_usd.render import render
+from gaslight_usd.sightings import sight_lights
+from gaslight_usd.splats import SplatScene
+
+Y709 = np.array(REC709_Y, np.float32)
+LIGHT = np.array([0.8, 3.0, 0.5])  # a small panel on the ceiling
+EYE = np.array([0.0, 1.5, 0.0])  # the one photo that frames it
+SUNK = EYE + 1.3 * (LIGHT - EYE)  # where the fit left it: on that photo's rays, 0.45 m up
+WHITE = 1.0
+
+
+def _box(step: float = 0.2) -> SplatScene:
+    """A 5 x 3 x 4 m room of flat, opaque, dim splats (radiance 0.3)."""
+    xs, ys = np.arange(-2.4, 2.41, step), np.arange(0.1, 2.91, step)
+    zs = np.arange(-1.9, 1.91, step)
+    faces = []
+    for fixed, value, (a, b) in ((1, 0.0, (xs, zs)), (1, 3.0, (xs, zs)), (0, -2.5, (ys, zs)),
+                                 (0, 2.5, (ys, zs)), (2, -2.0, (xs, ys)), (2, 2.0, (xs, ys))):
+        u, v = np.meshgrid(a, b)
+        pts = np.zeros((u.size, 3))
+        free = [i for i in range(3) if i != fixed]
+        pts[:, free[0]], pts[:, free[1]], pts[:, fixed] = u.ravel(), v.ravel(), value
+        scales = np.full((len(pts), 3), step * 0.6)
+        scales[:, fixed] = 0.005
+        faces.append((pts, scales))
+    pts = np.concatenate([f[0] for f in faces])
+    scales = np.concatenate([f[1] for f in faces])
+    return SplatScene.from_activated(pts, np.full((len(pts), 3), 0.3), scales,
+                                     np.full(len(pts), 0.99), metadata={"antialiased": True})
+
+
+def _light(at: np.ndarray, size: float = 1.0) -> SplatScene:
+    """Five bright flat splats round ``at``, ``size`` x 6 cm out."""
+    a = np.arange(5) * 2 * np.pi / 5
+    pts = at + 0.06 * size * np.stack([np.cos(a), np.zeros(5), np.sin(a)], 1)
+    scales = np.full((5, 3), 0.05 * size)
+    scales[:, 1] = 0.005
+    return SplatScene.from_activated(pts, np.full((5, 3), 20.0), scales, np.full(5, 0.9),
+                                     metadata={"antialiased": True})
+
+
+def _with(room: SplatScene, light: SplatScene) -> SplatScene:
+    return SplatScene(*(np.concatenate([getattr(room, a), getattr(light, a)]) for a in
+                        ("positions", "rotations", "log_scales", "opacity_logits", "sh")),
+                      metadata={"antialiased": True})
+
+
+def _camera(eye, target, name) -> PinholeCamera:
+    aimed = aimed_camera(np.array(eye, float), np.array(target, float), 0.55, 8)
+    return PinholeCamera(120, 90, 100.0, 100.0, 60.0, 45.0, aimed.R, aimed.t, name)
+
+
+def _views(aim_light_from_second: bool = False):
+    """The room's photos (the light on the ceiling, clipped at the white) and the fit
+    with the light sunk: one photo frames the light; the others look at the walls and
+    floor, or (``aim_light_from_second``) a second one also frames the light's place
+    but its photo saw none there (the light is elsewhere: the move is refused)."""
+    truth = _with(_box(), _light(LIGHT))
+    cams = [_camera(EYE, LIGHT, "up"),
+            _camera([0.0, 1.5, 0.0], [-2.5, 1.2, 0.0], "west"),
+            _camera([0.0, 1.5, 0.0], [0.0, 1.2, -2.0], "north"),
+            _camera([0.3, 1.5, 0.3], [0.0, 0.0, 1.0], "floor"),
+            _camera([-0.5, 1.4, 0.2], [0.0, 1.5, 2.0], "south")]
+    images = [np.minimum(render(truth, cam).image.numpy(), WHITE * 1.5) for cam in cams]
+    if aim_light_from_second:
+        cams[1] = _camera([1.6, 1.2, -0.4], LIGHT, "across")
+        images[1] = np.minimum(render(_box(), cams[1]).image.numpy(), WHITE)
+    fit = _with(_box(), _light(SUNK, 1.3))
+    return fit, cams, images
+
+
+def _surface(fit, cams, images):
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    return surface_sunk_lights(fit, cams, images, whites, Y709, sightings)
+
+
+def test_a_light_one_photo_frames_sunk_behind_the_ceiling_is_put_on_it():
+    fit, cams, images = _views()
+    out, report = _surface(fit, cams, images)
+    light = np.arange(fit.count - 5, fit.count)
+    assert report.moved == 5 and report.refused == 0
+    assert report.power_share > 0.99
+    moved = out.positions[light].astype(np.float64)
+    # on the ceiling (within a few cm under it), along the photo's rays
+    assert np.all(np.abs(moved[:, 1] - 3.0) < 0.06)
+    assert np.linalg.norm(moved.mean(0) - LIGHT) < 0.1
+    eye = cams[0].center
+    before = fit.positions[light] - eye
+    after = moved - eye
+    cos = np.sum(before * after, 1) / np.linalg.norm(before, axis=1) / np.linalg.norm(after, axis=1)
+    assert np.all(cos > 1 - 1e-9)
+    # shrunk with the distance: the photo that framed it draws it on the same pixels
+    ratio = np.linalg.norm(after, axis=1) / np.linalg.norm(before, axis=1)
+    np.testing.assert_allclose(out.scales[light] / fit.scales[light],
+                               np.repeat(ratio[:, None], 3, 1), rtol=1e-5)
+    # nothing else moved
+    np.testing.assert_array_equal(out.positions[: fit.count - 5], fit.positions[: fit.count - 5])
+
+
+def test_a_light_another_photo_saw_no_light_at_is_left_where_it_was():
+    fit, cams, images = _views(aim_light_from_second=True)
+    out, report = _surface(fit, cams, images)
+    assert report.moved == 0 and report.refused == 5
+    np.testing.assert_array_equal(out.positions, fit.positions)
+
+
+def test_lights_inside_the_room_are_not_moved():
+    """A lamp hanging under the ceiling, on the same photo's rays, stays."""
+    _, cams, images = _views()
+    hanging = _with(_box(), _light(EYE + 0.8 * (LIGHT - EYE), 0.8))
+    out, report = _surface(hanging, cams, images)
+    assert report.moved == 0 and report.refused == 0
+    np.testing.assert_array_equal(out.positions, hanging.positions)
