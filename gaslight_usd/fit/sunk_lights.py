@@ -6,7 +6,7 @@ photos see that ceiling or wall) it often leaves them behind it. The photo that 
 the light is satisfied, every other view sees the surface in front of them, and from
 anywhere inside the room the light is gone: the chain bench's ``panels`` room, fitted
 from its photos, had the ceiling panel one photo frames 0.3-0.8 m above the ceiling,
-4.3 stops short at the probe under it (``docs/measurements.md``).
+4.3 stops short at the room's middle probe (``docs/measurements.md``, session 17).
 
 The photos still say where it can be. A bright splat (over the white) lying in the cone
 of a compact light region of some photo (:mod:`gaslight_usd.sightings`: an outline over
