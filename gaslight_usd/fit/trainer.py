@@ -464,10 +464,9 @@ class Trainer:
                             self.y_weights.cpu().numpy()).as_dict()
 
     def _surface_sunk_lights(self, scene: SplatScene) -> tuple[SplatScene, SurfacedLights]:
-        """Light splats sunk behind the room's surfaces (a compact light one photo frames)
-        or floating in front of them (a window's light smeared along the rays), moved onto
-        them (:mod:`.sunk_lights`); only where some view clipped (the photos' light
-        regions say which splats are lights)."""
+        """Compact lights one photo frames, sunk behind the surface they are seen through,
+        moved onto it (:mod:`.sunk_lights`); only where some view clipped (the photos'
+        light regions say which splats are such lights)."""
         whites = self._view_whites(self.train)
         if not self.cfg.clip_bounds or whites is None:
             return scene, SurfacedLights(0, 0.0, 0.0, 0)
@@ -480,8 +479,8 @@ class Trainer:
                                               [self.data.images[i] for i in self.train],
                                               whites, weights, sightings)
         if surfaced.moved:
-            self.progress.message(f"moved {surfaced.moved} light splat(s) the fit left off "
-                                  "the room's surfaces back onto them")
+            self.progress.message(f"moved {surfaced.moved} light splat(s) sunk behind the "
+                                  "surface they are seen through onto it")
         return scene, surfaced
 
     def _weigh_clipped_lights(self, scene: SplatScene, backdrop: int,
