@@ -18,12 +18,12 @@ calls what is outside backdrop and never a light), it is moved back along that p
 ray to where the ray leaves the space, the first place there no photo contradicts, its
 scales shrunk in proportion so that the photo draws it on the same pixels. (The fit's
 depth next to such a light, in the one photo that frames it, is no guide: it is
-smeared by the sunk splats themselves.) The move is refused where another training view
-would see the new place unoccluded and its photo saw no light there (a light in
-another room, seen through a gap, stays where the photos put it). Compact lights two
-views frame are placed by their outlines (:mod:`.light_seeds`) and lie inside the
-space; broad ones (windows) are not held by a compact outline; nothing here moves
-either.
+smeared by the sunk splats themselves.) The move is refused where another training
+photo frames the new place: there parallax placed the light (:mod:`.light_seeds` seeds
+compact lights two views frame, inside the space), and a bright splat outside the space
+on a compact light's rays is something else (the lit ceiling behind a lamp; what a
+lampshade hides from the space's one viewpoint, the ``shade`` room). Broad lights
+(windows) are not held by a compact outline; nothing here moves them.
 
 ``gaslight2usd bench --suite chain --scene panels`` measures what it buys (the panels'
 power at the probes, ``light_dist_*``).
@@ -41,12 +41,9 @@ from ..sightings import Sightings
 from ..splats import SplatScene
 from ..surroundings import splat_sigma
 from .light_seeds import MAX_CONE_DEG
-from .power import depth_map
 
 RAY_STEPS = 128
 """Samples along a sunk splat's ray where it is tested against the captured space."""
-OCCLUDED_SHARE = 0.05
-"""Another view's depth this share nearer than the moved splat hides it from that view."""
 
 
 @dataclass
@@ -60,7 +57,7 @@ class SurfacedLights:
     mean_move: float
     """Mean distance moved (scene units)."""
     refused: int
-    """Sunk splats left where they were: another view saw no light at the new place."""
+    """Sunk splats left where they were: more than one photo frames the new place."""
 
     def as_dict(self) -> dict:
         return {"moved": self.moved, "power_share": round(self.power_share, 4),
@@ -127,15 +124,14 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     if not sunk.any():
         return scene, nothing
     idx = np.flatnonzero(sunk)
-    refused = np.zeros(len(idx), bool)
-    for v, (cam, y) in enumerate(zip(cameras, image_lum, strict=True)):
-        row, col, z, inside = _pixels(cam, target[idx], y.shape)
-        if not inside.any():
-            continue
-        depth = depth_map(scene, cam)
-        drow, dcol, _, _ = _pixels(cam, target[idx], depth.shape)
-        open_view = inside & (depth[drow, dcol] >= z * (1.0 - OCCLUDED_SHARE))
-        refused |= open_view & (y[row, col] < whites[v])
+    framed = np.zeros(len(idx), np.int64)
+    for cam, y in zip(cameras, image_lum, strict=True):
+        framed += _pixels(cam, target[idx], y.shape)[3]
+    # only where the one photo it is moved along frames the new place: elsewhere the
+    # photos' parallax placed the light, and a splat outside the space on its rays is
+    # something else (the lit ceiling behind a lamp, or what a shade hides from the
+    # space's one viewpoint)
+    refused = framed > 1
     idx_moved = idx[~refused]
     area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
     power = lum * area
