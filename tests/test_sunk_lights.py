@@ -1,5 +1,6 @@
 """A light one photo frames, fitted behind the ceiling, is put back on it
-(gaslight_usd.fit.sunk_lights)."""
+(gaslight_usd.fit.sunk_lights); one a second photo frames, or one hanging in the room,
+stays."""
 
 from __future__ import annotations
 
@@ -113,7 +114,7 @@ def test_a_light_whose_place_a_second_photo_frames_is_left_where_it_was():
     """There parallax, not the one photo, placed it (and this photo saw none there)."""
     fit, cams, images = _views(aim_light_from_second=True)
     out, report = _surface(fit, cams, images)
-    assert report.moved == 0
+    assert report.moved == 0 and report.refused == 5
     np.testing.assert_array_equal(out.positions, fit.positions)
 
 

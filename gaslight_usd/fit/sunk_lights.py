@@ -93,8 +93,6 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     if not len(bright) or not len(compact) or len(cameras) < 2:
         return scene, nothing
     pos = scene.positions.astype(np.float64)
-    image_lum = [np.asarray(im, np.float32) @ np.asarray(weights, np.float32)
-                 for im in images]
     # the view whose compact outline holds each bright splat (nearest its axis)
     angle = sightings.angles(pos[bright])[:, compact] / sightings.radii[compact][None]
     nearest = np.argmin(angle, axis=1)
@@ -125,8 +123,8 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
         return scene, nothing
     idx = np.flatnonzero(sunk)
     framed = np.zeros(len(idx), np.int64)
-    for cam, y in zip(cameras, image_lum, strict=True):
-        framed += _pixels(cam, target[idx], y.shape)[3]
+    for cam, image in zip(cameras, images, strict=True):
+        framed += _pixels(cam, target[idx], image.shape)[3]
     # only where the one photo it is moved along frames the new place: elsewhere the
     # photos' parallax placed the light, and a splat outside the space on its rays is
     # something else (the lit ceiling behind a lamp, or what a shade hides from the
