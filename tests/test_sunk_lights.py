@@ -84,7 +84,7 @@ def _views(aim_light_from_second: bool = False):
 def _surface(fit, cams, images):
     whites = np.full(len(cams), WHITE)
     sightings = sight_lights(cams, images, whites, Y709)
-    return surface_sunk_lights(fit, cams, images, whites, Y709, sightings)
+    return surface_sunk_lights(fit, cams, whites, Y709, sightings)
 
 
 def test_a_light_one_photo_frames_sunk_behind_the_ceiling_is_put_on_it():

@@ -82,12 +82,14 @@ class LightSeed:
                 "size": round(self.size, 6), "views": self.views, "framed": self.framed}
 
 
-def _framing(points: np.ndarray, cameras: list[PinholeCamera]) -> np.ndarray:
-    """(N, V) bool: each camera frames each point (in front, inside the margin)."""
+def framing(points: np.ndarray, cameras: list[PinholeCamera],
+            margin: float = FRAME_MARGIN) -> np.ndarray:
+    """(N, V) bool: each camera frames each point (in front, ``margin`` of the width
+    inside the frame)."""
     out = np.zeros((len(points), len(cameras)), bool)
     for v, cam in enumerate(cameras):
         uv, z = cam.project(points)
-        m = FRAME_MARGIN * cam.width
+        m = margin * cam.width
         out[:, v] = (z > 0) & (uv[:, 0] >= m) & (uv[:, 0] < cam.width - m) & \
             (uv[:, 1] >= m) & (uv[:, 1] < cam.height - m)
     return out
@@ -103,7 +105,7 @@ def _counted_framing(sightings: Sightings, compact: np.ndarray, points: np.ndarr
         in_other, _ = _held_by_view(sightings, others, points, len(cameras))
     else:
         in_other = np.zeros_like(held)
-    return held | (_framing(points, cameras) & ~in_other)
+    return held | (framing(points, cameras) & ~in_other)
 
 
 def _held_by_view(sightings: Sightings, regions: np.ndarray, points: np.ndarray,

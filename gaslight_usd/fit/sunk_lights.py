@@ -5,7 +5,7 @@ along that photo's rays, and where the room's surface around it is well fitted (
 photos see that ceiling or wall) it often leaves them behind it. The photo that framed
 the light is satisfied, every other view sees the surface in front of them, and from
 anywhere inside the room the light is gone: the chain bench's ``panels`` room, fitted
-from its photos, had the ceiling panel one photo frames 0.3-0.8 m above the ceiling,
+from its photos, had the ceiling panel one photo frames 0.2-0.8 m above the ceiling,
 4.3 stops short at the room's middle probe (``docs/measurements.md``, session 17).
 
 The photos still say where it can be. A bright splat (over the white) lying in the cone
@@ -40,7 +40,7 @@ from ..capture import capture_space
 from ..sightings import Sightings
 from ..splats import SplatScene
 from ..surroundings import splat_sigma
-from .light_seeds import MAX_CONE_DEG
+from .light_seeds import MAX_CONE_DEG, framing
 
 RAY_STEPS = 128
 """Samples along a sunk splat's ray where it is tested against the captured space."""
@@ -64,27 +64,14 @@ class SurfacedLights:
                 "mean_move": round(self.mean_move, 4), "refused": self.refused}
 
 
-def _pixels(cam: PinholeCamera, points: np.ndarray, shape: tuple[int, ...]
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Row, column (clipped to the image), depth and whether inside, for ``points``
-    in ``cam`` drawn at ``shape``."""
-    uv, z = cam.project(points)
-    h, w = shape[:2]
-    x = np.floor(uv[:, 0] * w / cam.width)
-    y = np.floor(uv[:, 1] * h / cam.height)
-    inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
-    return (np.clip(np.nan_to_num(y), 0, h - 1).astype(np.int64),
-            np.clip(np.nan_to_num(x), 0, w - 1).astype(np.int64), z, inside)
-
-
-def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
-                        images: list[np.ndarray], whites: np.ndarray, weights: np.ndarray,
-                        sightings: Sightings) -> tuple[SplatScene, SurfacedLights]:
+def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera], whites: np.ndarray,
+                        weights: np.ndarray, sightings: Sightings
+                        ) -> tuple[SplatScene, SurfacedLights]:
     """``scene`` with its sunk bright splats moved onto the surface they are seen
-    through (module docstring), and what moved. ``cameras``/``images``: the training
-    views (any size, framing as the cameras); ``whites`` (V,): each view's white, in
-    its image's units; ``weights``: luminance weights; ``sightings``: the views' light
-    regions (:func:`gaslight_usd.sightings.sight_lights`, same views)."""
+    through (module docstring), and what moved. ``cameras``: the training views;
+    ``whites`` (V,): each view's white, in the scene's units; ``weights``: luminance
+    weights; ``sightings``: the views' light regions
+    (:func:`gaslight_usd.sightings.sight_lights`, same views)."""
     lum = scene.base_colours @ np.asarray(weights, np.float32)
     nothing = SurfacedLights(0, 0.0, 0.0, 0)
     compact = np.flatnonzero(sightings.whole
@@ -98,54 +85,47 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     nearest = np.argmin(angle, axis=1)
     held = angle[np.arange(len(bright)), nearest] <= 1.0
     best_view = np.where(held, sightings.view[compact][nearest], -1)
+    centres = np.array([cam.center for cam in cameras])
     probe = scene.subset(np.arange(scene.count))
     probe.metadata = {**scene.metadata, "exposure_scale": float(np.median(whites))}
-    space = capture_space(probe, np.array([cam.center for cam in cameras]))
+    space = capture_space(probe, centres)
     sigma = splat_sigma(scene)
     outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
-    target = pos.copy()
-    sunk = np.zeros(scene.count, bool)
-    for v in np.unique(best_view[(best_view >= 0) & outside]):
-        idx = bright[(best_view == v) & outside]
-        eye = cameras[v].center
-        t = np.linspace(0.0, 1.0, RAY_STEPS + 1)[1:]
-        along = eye + (pos[idx] - eye)[:, None, :] * t[None, :, None]  # (K, S, 3)
-        # the last sample before the ray first leaves the space, each sample with the
-        # reach the lights finder gives a splat (two sigmas) shrunk to its distance there
-        reach = 2.0 * sigma[idx][:, None] * t[None]
-        inside = space.inside(along.reshape(-1, 3), reach.ravel()).reshape(len(idx), -1)
-        first_out = np.argmin(inside, axis=1)
-        ok = inside[:, 0] & ~inside[np.arange(len(idx)), -1]
-        keep = idx[ok]
-        target[keep] = eye + (pos[keep] - eye) * t[first_out[ok] - 1][:, None]
-        sunk[keep] = True
-    if not sunk.any():
+    cand = (best_view >= 0) & outside
+    if not cand.any():
         return scene, nothing
-    idx = np.flatnonzero(sunk)
-    framed = np.zeros(len(idx), np.int64)
-    for cam, image in zip(cameras, images, strict=True):
-        framed += _pixels(cam, target[idx], image.shape)[3]
+    idx = bright[cand]
+    eye = centres[best_view[cand]]  # (K, 3)
+    t = np.linspace(0.0, 1.0, RAY_STEPS + 1)[1:]
+    along = eye[:, None] + (pos[idx] - eye)[:, None, :] * t[None, :, None]  # (K, S, 3)
+    # the last sample before the ray first leaves the space, each sample with the reach
+    # the lights finder gives a splat (two sigmas) shrunk to its distance there
+    reach = 2.0 * sigma[idx][:, None] * t[None]
+    inside = space.inside(along.reshape(-1, 3), reach.ravel()).reshape(len(idx), -1)
+    first_out = np.argmin(inside, axis=1)
+    leaves = inside[:, 0] & ~inside[:, -1]
+    if not leaves.any():
+        return scene, nothing
+    target = eye + (pos[idx] - eye) * t[np.maximum(first_out - 1, 0)][:, None]
     # only where the one photo it is moved along frames the new place: elsewhere the
     # photos' parallax placed the light, and a splat outside the space on its rays is
     # something else (the lit ceiling behind a lamp, or what a shade hides from the
     # space's one viewpoint)
-    refused = framed > 1
-    idx_moved = idx[~refused]
+    refused = leaves & (framing(target, cameras, margin=0.0).sum(axis=1) > 1)
+    move = leaves & ~refused
+    idx_moved = idx[move]
     area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
     power = lum * area
     out = scene.subset(np.arange(scene.count))
-    if len(idx_moved):
-        eye = np.array([cameras[v].center for v in best_view[np.searchsorted(bright,
-                                                                             idx_moved)]])
-        ratio = (np.linalg.norm(target[idx_moved] - eye, axis=1)
-                 / np.maximum(np.linalg.norm(pos[idx_moved] - eye, axis=1), 1e-12))
-        out.positions[idx_moved] = target[idx_moved].astype(out.positions.dtype)
-        out.log_scales[idx_moved] = (scene.log_scales[idx_moved]
-                                     + np.log(ratio)[:, None]).astype(out.log_scales.dtype)
+    ratio = (np.linalg.norm(target[move] - eye[move], axis=1)
+             / np.maximum(np.linalg.norm(pos[idx_moved] - eye[move], axis=1), 1e-12))
+    out.positions[idx_moved] = target[move].astype(out.positions.dtype)
+    out.log_scales[idx_moved] = (scene.log_scales[idx_moved]
+                                 + np.log(ratio)[:, None]).astype(out.log_scales.dtype)
     report = SurfacedLights(
         moved=int(len(idx_moved)),
         power_share=float(power[idx_moved].sum() / max(power[bright].sum(), 1e-30)),
-        mean_move=float(np.linalg.norm(target[idx_moved] - pos[idx_moved], axis=1).mean())
+        mean_move=float(np.linalg.norm(target[move] - pos[idx_moved], axis=1).mean())
         if len(idx_moved) else 0.0,
         refused=int(refused.sum()))
     return out, report

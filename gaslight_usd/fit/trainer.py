@@ -475,9 +475,7 @@ class Trainer:
         weights = self.y_weights.cpu().numpy()
         sightings = sight_lights(views, [self.data.light_views()[i] for i in self.train],
                                  whites, weights)
-        scene, surfaced = surface_sunk_lights(scene, views,
-                                              [self.data.images[i] for i in self.train],
-                                              whites, weights, sightings)
+        scene, surfaced = surface_sunk_lights(scene, views, whites, weights, sightings)
         if surfaced.moved:
             self.progress.message(f"moved {surfaced.moved} light splat(s) sunk behind the "
                                   "surface they are seen through onto it")
