@@ -12,6 +12,12 @@ them the splats' median point) the visible surface is found per direction
 than the photos' white, so lights hide nothing), and a point is inside when some
 viewpoint sees it no farther than that surface plus a small reach. Splats outside are
 *backdrop*: they may show in panoramas, but they are never lights.
+
+Where bright splats make most of what a direction shows (a window, a lit patch of
+ceiling) there is no dim surface, and the boundary falls through to whatever lies
+behind. The surfaces' *local planes*, fitted around such a hole and carried across it,
+are where a light set in a wall or ceiling belongs (:meth:`CaptureSpace.inside`'s
+boundaries).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from .splats import SplatScene
-from .surroundings import Surroundings, scene_view, splat_sigma
+from .surroundings import Surroundings, bin_cover, planar_fill, scene_view, splat_sigma
 
 MAX_VIEWPOINTS = 1
 """Viewpoints the space is seen from: the cameras' median point only. More (camera
@@ -39,6 +45,11 @@ DEPTH_SLACK = 0.0
 """A point may lie this share of the surface's distance beyond it and still be inside."""
 OPAQUE = 0.1
 """Splats fainter than this opacity do not make surfaces (they are haze)."""
+SEAL_DEG = 22.5
+"""The surfaces' local planes (:attr:`CaptureSpace.planes`) are fitted to the surfaces
+within this angle of each direction: three bins of
+:data:`gaslight_usd.surroundings.BINS` each side, across a window 1 m wide seen from
+2.5 m."""
 
 
 def camera_centres(metadata: Mapping[str, Any]) -> np.ndarray | None:
@@ -72,20 +83,40 @@ class CaptureSpace:
     """(2, 3) low and high corners of the opaque splats' percentile box."""
     source: str
     """How the viewpoints were chosen (for reports)."""
+    planes: list[np.ndarray] | None = None
+    """Per view, (B,) the distance to the local plane of the surfaces carried across the
+    bins where bright splats leave a hole in them (:func:`_planes`; ``inf`` elsewhere):
+    None unless asked for."""
 
-    def inside(self, points: np.ndarray, reach: np.ndarray | float = 0.0) -> np.ndarray:
-        """(N,) True where some viewpoint sees ``points`` no farther than its surface.
+    def inside(self, points: np.ndarray, reach: np.ndarray | float = 0.0,
+               boundary: str = "open") -> np.ndarray:
+        """(N,) True where some viewpoint sees ``points`` no farther than its boundary.
 
-        ``reach`` (scalar or (N,)) lets a point lie that much beyond the surface
-        (a splat's own extent).
+        ``reach`` (scalar or (N,)) lets a point lie that much beyond the boundary
+        (a splat's own extent). ``boundary``: ``open``, the visible dim surfaces (they
+        fall through at a window); ``sealed``, the surfaces' local planes across such
+        holes (a window closed by its wall); ``either``, the farther of the two (a
+        window on its wall's plane is in the room, though the surfaces' depth noise
+        puts the open boundary in front of it there). The last two need ``planes``.
         """
+        if boundary not in ("open", "sealed", "either"):
+            raise ValueError(f"boundary must be open, sealed or either, not {boundary!r}")
         points = np.asarray(points, np.float64).reshape(-1, 3)
         reach = np.broadcast_to(np.asarray(reach, np.float64), (len(points),))
         seen = np.zeros(len(points), bool)
         in_box = np.all((points >= self.box[0]) & (points <= self.box[1]), axis=1)
-        for view in self.views:
+        planes = self.planes if boundary != "open" else None
+        if boundary != "open" and planes is None:
+            raise ValueError(f"a {boundary} boundary needs capture_space(..., planes=True)")
+        for k, view in enumerate(self.views):
+            depth = view.depth
+            if planes is not None:
+                plane = planes[k]
+                depth = np.where(np.isfinite(plane),
+                                 plane if boundary == "sealed" else np.maximum(plane, depth),
+                                 depth)
             b, r = view.bin_of(points)
-            limit = view.depth[b] * (1.0 + DEPTH_SLACK) + reach
+            limit = depth[b] * (1.0 + DEPTH_SLACK) + reach
             seen |= r <= limit
         return seen & in_box
 
@@ -103,8 +134,11 @@ def _pick(points: np.ndarray, count: int) -> np.ndarray:
     return points[np.linspace(0, len(points) - 1, count).round().astype(int)]
 
 
-def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None) -> CaptureSpace:
-    """The captured space of ``scene`` (module docstring); ``viewpoints`` override the cameras."""
+def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None,
+                  planes: bool = False) -> CaptureSpace:
+    """The captured space of ``scene`` (module docstring); ``viewpoints`` override the
+    cameras; ``planes``: also the surfaces' local planes (:attr:`CaptureSpace.planes`,
+    for the ``sealed`` and ``either`` boundaries)."""
     opaque = scene.opacities > OPAQUE
     if viewpoints is None:
         viewpoints = camera_centres(scene.metadata)
@@ -126,6 +160,7 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None) -> Ca
     surface = opaque & (scene.base_colours.max(axis=1) <= white)
     views = [scene_view(scene, v, mask=surface if surface.sum() >= 10 else opaque)
              for v in viewpoints]
+    local = [_planes(scene, view, opaque & ~surface) for view in views] if planes else None
     pos = scene.positions[opaque] if opaque.sum() >= 10 else scene.positions
     if len(pos):
         box = np.quantile(pos, [BOX_QUANTILE, 1 - BOX_QUANTILE], axis=0).astype(np.float64)
@@ -133,10 +168,33 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None) -> Ca
         box = np.stack([box[0] - pad, box[1] + pad])
     else:
         box = np.array([[-np.inf] * 3, [np.inf] * 3])
-    return CaptureSpace(viewpoints, views, box, source)
+    return CaptureSpace(viewpoints, views, box, source, local)
+
+
+def _planes(scene: SplatScene, view: Surroundings, bright: np.ndarray) -> np.ndarray:
+    """(B,) ``view``'s distance to the local plane of its surfaces in the bins the
+    ``bright`` opaque splats cover more than the dim surfaces do (a window, a lit patch:
+    holes in the surfaces), fitted to the other bins within :data:`SEAL_DEG`
+    (:func:`gaslight_usd.surroundings.planar_fill`); ``inf`` elsewhere."""
+    if view.own_depth is None:
+        return np.full(len(view.depth), np.inf)
+    sigma = splat_sigma(scene)
+    cover = [bin_cover(view.point, scene.positions[m], sigma[m], scene.opacities[m],
+                       view.bins) for m in (bright, ~bright & (scene.opacities > OPAQUE))]
+    holes = cover[0] > cover[1]
+    if not holes.any():
+        return np.full(len(view.depth), np.inf)
+    # only across the holes: elsewhere the open boundary stands (a ceiling few photos
+    # see is smeared deep, and its planes with it: the chain bench's panels room's
+    # ceiling splats lie 0.7 m over it at the median)
+    return np.where(holes, planar_fill(view.own_depth, view.directions, ~holes, SEAL_DEG),
+                    np.inf)
 
 
 def backdrop_mask(scene: SplatScene, space: CaptureSpace) -> np.ndarray:
-    """(N,) splats outside the captured space, or the fit's own unseen-surface backdrop."""
-    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene))
+    """(N,) splats outside the captured space (beyond the farther of its open boundary
+    and its surfaces' planes, when it has them), or the fit's own unseen-surface
+    backdrop."""
+    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene),
+                            boundary="open" if space.planes is None else "either")
     return outside | fit_backdrop_mask(scene)

@@ -42,8 +42,11 @@ class Surroundings:
     radiance: np.ndarray
     """(B, 3) composited radiance arriving from each bin (black behind the last splat)."""
     depth: np.ndarray
-    """(B,) distance to the visible surface (``inf`` where light still gets through)."""
+    """(B,) distance to the visible surface (``inf`` where light still gets through),
+    the least of each bin's 3 x 3 neighbourhood (:func:`nearest_around`)."""
     bins: tuple[int, int]
+    own_depth: np.ndarray | None = None
+    """(B,) each bin's own surface distance, before the neighbourhood's least."""
 
     def irradiance(self, normals: np.ndarray) -> np.ndarray:
         """(M, 3) RGB irradiance on surfaces at the point facing each of ``normals`` (M, 3)."""
@@ -82,6 +85,33 @@ def splat_sigma(scene: SplatScene) -> np.ndarray:
     return np.sqrt(s[:, 1] * s[:, 2])
 
 
+def _binned_alpha(point: np.ndarray, positions: np.ndarray, sigma: np.ndarray,
+                  opacity: np.ndarray, bins: tuple[int, int]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The splats away from ``point`` (mask), their bins, distances and the share of
+    their bin each covers (integrated alpha over the bin's area there, capped at the
+    opacity)."""
+    rows, cols = bins
+    omega = np.broadcast_to(latlong_solid_angles(cols, rows), (rows, cols)).reshape(-1)
+    d = np.asarray(positions, np.float64) - point
+    r = np.linalg.norm(d, axis=1)
+    keep = r > 1e-9
+    d, r = d[keep], r[keep]
+    b = _bin_index(d, r, bins)
+    sig = np.asarray(sigma, np.float64)[keep]
+    op = np.clip(np.asarray(opacity, np.float64)[keep], 0.0, 0.999)
+    return keep, b, r, op * np.minimum(1.0, 2 * np.pi * sig**2 / (r**2 * omega[b]))
+
+
+def bin_cover(point, positions: np.ndarray, sigma: np.ndarray, opacity: np.ndarray,
+              bins: tuple[int, int] = BINS) -> np.ndarray:
+    """(B,) the splats' summed cover of each direction bin seen from ``point`` (the
+    alpha :func:`look_from` composites, not composited)."""
+    point = np.asarray(point, np.float64).reshape(3)
+    _, b, _, alpha = _binned_alpha(point, positions, sigma, opacity, bins)
+    return np.bincount(b, alpha, minlength=bins[0] * bins[1])
+
+
 def look_from(point, positions: np.ndarray, colours: np.ndarray, sigma: np.ndarray,
               opacity: np.ndarray, bins: tuple[int, int] = BINS) -> Surroundings:
     """Composite the splats (N,) as seen from ``point`` into direction bins.
@@ -94,14 +124,7 @@ def look_from(point, positions: np.ndarray, colours: np.ndarray, sigma: np.ndarr
     n_bins = rows * cols
     directions = latlong_directions(cols, rows).reshape(-1, 3)
     omega = np.broadcast_to(latlong_solid_angles(cols, rows), (rows, cols)).reshape(-1)
-    d = np.asarray(positions, np.float64) - point
-    r = np.linalg.norm(d, axis=1)
-    keep = r > 1e-9
-    d, r = d[keep], r[keep]
-    b = _bin_index(d, r, bins)
-    sig = np.asarray(sigma, np.float64)[keep]
-    op = np.clip(np.asarray(opacity, np.float64)[keep], 0.0, 0.999)
-    alpha = op * np.minimum(1.0, 2 * np.pi * sig**2 / (r**2 * omega[b]))
+    keep, b, r, alpha = _binned_alpha(point, positions, sigma, opacity, bins)
     order = np.lexsort((r, b))
     b, r, alpha = b[order], r[order], alpha[order]
     col = np.asarray(colours, np.float64)[keep][order]
@@ -124,7 +147,8 @@ def look_from(point, positions: np.ndarray, colours: np.ndarray, sigma: np.ndarr
     half = (share >= HALF_ALPHA) & (share - alpha / np.maximum(total[b], 1e-30) < HALF_ALPHA)
     depth[b[half]] = r[half]
     depth[b[cross]] = r[cross]  # at most one crossing per bin: transmittance only falls
-    return Surroundings(point, directions, omega, radiance, nearest_around(depth, bins), bins)
+    return Surroundings(point, directions, omega, radiance, nearest_around(depth, bins), bins,
+                        depth)
 
 
 def nearest_around(depth: np.ndarray, bins: tuple[int, int]) -> np.ndarray:
@@ -139,6 +163,37 @@ def nearest_around(depth: np.ndarray, bins: tuple[int, int]) -> np.ndarray:
     rows, cols = bins
     stack = [padded[i:i + rows, j:j + cols] for i in range(3) for j in range(3)]
     return np.min(stack, axis=0).reshape(-1)
+
+
+def planar_fill(depth: np.ndarray, directions: np.ndarray, ring: np.ndarray,
+                radius_deg: float) -> np.ndarray:
+    """(B,) each bin's distance were the surfaces of the ``ring`` bins within
+    ``radius_deg`` of it (their finite ``depth``) one plane; ``inf`` where too few
+    surround it, or spread along one line only.
+
+    Seen from a point, a plane ``n . x = h`` lies at ``h / (n . d)`` along a unit
+    direction ``d``: its inverse depth is *linear* in ``d``. Fitting ``1 / depth =
+    a . d`` over the ring therefore carries a wall straight across a window in it (a
+    hole the ring leaves out), evens out the fit's depth noise along it, and where the
+    ring spans two walls (a corner) gives a depth between theirs.
+    """
+    depth = np.asarray(depth, np.float64)
+    dirs = np.asarray(directions, np.float64)
+    fill = np.full(len(depth), np.inf)
+    ring = np.flatnonzero(np.asarray(ring) & np.isfinite(depth) & (depth > 0))
+    if len(ring) < 4:
+        return fill
+    w = ((dirs @ dirs[ring].T) >= np.cos(np.radians(radius_deg))).astype(np.float64)
+    a_mat = np.einsum("br,ri,rj->bij", w, dirs[ring], dirs[ring])
+    b_vec = w @ (dirs[ring] / depth[ring][:, None])
+    # a plane needs ring bins spread both ways across the view
+    ok = (w.sum(1) >= 4) & (np.linalg.eigvalsh(a_mat)[:, 0] > 1e-3 * w.sum(1))
+    if not ok.any():
+        return fill
+    coef = np.linalg.solve(a_mat[ok], b_vec[ok][..., None])[..., 0]
+    inv = np.einsum("bi,bi->b", coef, dirs[ok])
+    fill[ok] = np.where(inv > 0, 1.0 / np.maximum(inv, 1e-12), np.inf)
+    return fill
 
 
 def scene_view(scene: SplatScene, point, mask: np.ndarray | None = None,

@@ -84,7 +84,7 @@ def _views(aim_light_from_second: bool = False):
 def _surface(fit, cams, images):
     whites = np.full(len(cams), WHITE)
     sightings = sight_lights(cams, images, whites, Y709)
-    return surface_sunk_lights(fit, cams, whites, Y709, sightings)
+    return surface_sunk_lights(fit, cams, images, whites, Y709, sightings)
 
 
 def test_a_light_one_photo_frames_sunk_behind_the_ceiling_is_put_on_it():
@@ -125,3 +125,86 @@ def test_lights_inside_the_room_are_not_moved():
     out, report = _surface(hanging, cams, images)
     assert report.moved == 0 and report.refused == 0
     np.testing.assert_array_equal(out.positions, hanging.positions)
+
+
+WINDOW = dict(x=2.5, y=(1.3, 1.9), z=(-0.4, 0.4))
+
+
+def _wall_with_window() -> SplatScene:
+    """The room with a hole in its +x wall where the window is."""
+    room = _box()
+    p = room.positions
+    hole = ((p[:, 0] > 2.4) & (p[:, 1] > WINDOW["y"][0] - 0.1) & (p[:, 1] < WINDOW["y"][1] + 0.1)
+            & (p[:, 2] > WINDOW["z"][0] - 0.1) & (p[:, 2] < WINDOW["z"][1] + 0.1))
+    return room.subset(np.flatnonzero(~hole))
+
+
+def _window(x: float = WINDOW["x"] - 0.01) -> SplatScene:
+    """A bright flat window (radiance 20) in the +x wall's plane."""
+    ys = np.arange(WINDOW["y"][0], WINDOW["y"][1] + 1e-6, 0.1)
+    zs = np.arange(WINDOW["z"][0], WINDOW["z"][1] + 1e-6, 0.1)
+    u, v = np.meshgrid(ys, zs)
+    pts = np.stack([np.full(u.size, x), u.ravel(), v.ravel()], 1)
+    scales = np.full((len(pts), 3), 0.06)
+    scales[:, 0] = 0.005
+    return SplatScene.from_activated(pts, np.full((len(pts), 3), 20.0), scales,
+                                     np.full(len(pts), 0.9), metadata={"antialiased": True})
+
+
+def _window_views():
+    """Photos of the room with its window from four places across the room (the window
+    clipped at the white, broad: wider than a compact light's outline)."""
+    truth = _with(_wall_with_window(), _window())
+    centre = np.array([2.5, 1.6, 0.0])
+    cams = [_camera([-0.5, 1.5, 0.0], centre, "facing"),
+            _camera([-0.2, 1.4, -1.2], centre, "left"),
+            _camera([-0.2, 1.6, 1.2], centre, "right"),
+            _camera([0.5, 1.2, 0.3], [-2.5, 1.2, 0.0], "back"),
+            _camera([0.0, 1.5, 0.0], [0.0, 0.0, 1.5], "floor")]
+    images = [np.minimum(render(truth, cam).image.numpy(), WHITE * 1.5) for cam in cams]
+    return cams, images
+
+
+def test_a_window_floating_in_the_room_is_put_back_in_its_wall():
+    """A broad light smeared along the rays (0.6 m in front of its wall) is moved onto
+    the wall's plane, which the sealed captured space carries across the window."""
+    cams, images = _window_views()
+    eye = cams[0].center
+    window = _window()
+    floating = window.subset(np.arange(window.count))
+    floating.positions = (eye + 0.78 * (window.positions - eye)).astype(np.float32)
+    floating.log_scales = (window.log_scales + np.log(0.78)).astype(np.float32)
+    fit = _with(_wall_with_window(), floating)
+    out, report = _surface(fit, cams, images)
+    light = np.arange(fit.count - window.count, fit.count)
+    assert abs(float(np.median(fit.positions[light, 0])) - WINDOW["x"]) > 0.5
+    assert report.moved >= 0.9 * window.count
+    x = out.positions[light, 0].astype(np.float64)
+    assert np.median(np.abs(x - WINDOW["x"])) < 0.08
+    # the room's own splats stay
+    np.testing.assert_array_equal(out.positions[: light[0]], fit.positions[: light[0]])
+
+
+def test_a_window_in_its_wall_stays():
+    cams, images = _window_views()
+    fit = _with(_wall_with_window(), _window())
+    out, report = _surface(fit, cams, images)
+    assert report.moved == 0
+    np.testing.assert_array_equal(out.positions, fit.positions)
+
+
+def test_a_broad_light_hanging_in_the_room_is_not_pushed_onto_the_wall():
+    """A lit shade 1 m in front of the back wall: photos from across the room see the
+    wall behind it unlit, so it stays."""
+    shade = _window(x=0.0)  # a bright panel hanging mid-room, facing +x
+    shade.positions[:, 0] = -1.5
+    truth = _with(_box(), shade)
+    target = np.array([-2.5, 1.6, 0.0])
+    cams = [_camera([1.5, 1.5, 0.0], target, "facing"),
+            _camera([1.0, 1.4, -1.8], target, "left"),
+            _camera([1.0, 1.6, 1.8], target, "right"),
+            _camera([0.0, 1.5, 0.0], [0.0, 0.0, 1.5], "floor")]
+    images = [np.minimum(render(truth, cam).image.numpy(), WHITE * 1.5) for cam in cams]
+    out, report = _surface(truth, cams, images)
+    assert report.moved <= 0.1 * shade.count
+    np.testing.assert_allclose(np.median(out.positions[-shade.count:, 0]), -1.5, atol=0.05)

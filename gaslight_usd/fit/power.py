@@ -117,7 +117,11 @@ sample's own depth (nothing in front of it)."""
 FACING = 0.3
 """...and looks at it no more obliquely than this cosine."""
 MAX_LIGHTS = 6
-LOG2_K_RANGE = (-2.0, 12.0)
+LOG2_K_RANGE = (-2.0, 16.0)
+"""The factors searched (log2 over the fill). A bare bulb can be 15 stops over the
+room's median, its fill a few over the white: the chain bench's ``bulb`` room needed
+11-13, and a search that ran off its end at 12 left the lamp at its fill, 8 stops
+short (``docs/measurements.md``, session 19)."""
 ALBEDO_QUANTILE = 0.75
 """This share of the sampled albedos must stay at or under 1 for a factor to be possible
 (a matte surface reflects at most what reaches it)."""

@@ -1,49 +1,71 @@
-"""Lights the fit sank behind the surface they are seen through, put back on it.
+"""Light the fit left off the room's surfaces, put back on them along the photos' rays.
 
-A light only one photo frames has no parallax: the fit can put its splats anywhere
-along that photo's rays, and where the room's surface around it is well fitted (other
-photos see that ceiling or wall) it often leaves them behind it. The photo that framed
-the light is satisfied, every other view sees the surface in front of them, and from
-anywhere inside the room the light is gone: the chain bench's ``panels`` room, fitted
-from its photos, had the ceiling panel one photo frames 0.2-0.8 m above the ceiling,
-4.3 stops short at the room's middle probe (``docs/measurements.md``, session 17).
+A light's depth comes from parallax, and a fit gets it wrong two ways.
 
-The photos still say where it can be. A bright splat (over the white) lying in the cone
-of a compact light region of some photo (:mod:`gaslight_usd.sightings`: an outline over
-that photo's white, clear of the frame, at most
-:data:`gaslight_usd.fit.light_seeds.MAX_CONE_DEG` across) is on that photo's rays. When
-it lies outside the captured space (:mod:`gaslight_usd.capture`: the free space the
-cameras' median point sees, bounded by the fit's opaque surfaces; the lights finder
-calls what is outside backdrop and never a light), it is moved back along that photo's
-ray to where the ray leaves the space, the first place there no photo contradicts, its
-scales shrunk in proportion so that the photo draws it on the same pixels. (The fit's
-depth next to such a light, in the one photo that frames it, is no guide: it is
-smeared by the sunk splats themselves.) The move is refused where another training
-photo frames the new place: there parallax placed the light (:mod:`.light_seeds` seeds
-compact lights two views frame, inside the space), and a bright splat outside the space
-on a compact light's rays is something else (the lit ceiling behind a lamp; what a
-lampshade hides from the space's one viewpoint, the ``shade`` room). Broad lights
-(windows) are not held by a compact outline; nothing here moves them.
+- **Sunk compact lights.** A light only one photo frames can sit anywhere along that
+  photo's rays; where the room around it is well fitted, the fit often leaves it behind
+  the ceiling or wall: the chain bench's ``panels`` room, fitted from its photos, had
+  the ceiling panel one photo frames 0.3-0.8 m above the ceiling, where the lights
+  finder calls it backdrop (``docs/measurements.md``, session 17).
+- **Broad lights off their wall.** Clipped pixels only bound the fit from below, so a
+  window's light may lie at any depth along the rays that see it clipped: the ``bulb``
+  room's fit left clumps of its window 0.6-1.1 m in front of it, beside the probe 0.5 m
+  from the window, and more behind the wall (session 19).
 
-``gaslight2usd bench --suite chain --scene panels`` measures what it buys (the panels'
-power at the probes, ``light_dist_*``).
+The photos still say where such light can be. A bright splat (over the white) lying in
+the cone of a light region of some photo (:mod:`gaslight_usd.sightings`) is on that
+photo's rays, and it is moved along them, its scales in proportion so that the photo
+draws it on the same pixels:
+
+- held by a **compact** outline (whole, at most
+  :data:`gaslight_usd.fit.light_seeds.MAX_CONE_DEG` across) and outside the captured
+  space (:mod:`gaslight_usd.capture`: the free space the cameras' median point sees,
+  bounded by the fit's dim opaque surfaces), to where the ray leaves the space. Refused
+  where another training photo frames the new place: there parallax placed the light,
+  and a bright splat outside the space on a compact light's rays is something else (the
+  lit ceiling behind a lamp; what a lampshade hides from the space's one viewpoint).
+- held only by **broad** outlines (windows, skylights, large panels), more than
+  :data:`OFF_SURFACE_SHARE` of its distance in front of or behind the room's boundary,
+  onto it: the captured space's *sealed* boundary, the local planes of the surfaces,
+  carried across the bright holes a window leaves in them (the open boundary falls
+  through there). Refused where some photo framing the new place shows
+  no light there, and a whole light (the splats of outlines holding splats in common)
+  stays where it is when most of its splats are refused: a lit shade hanging in front
+  of a wall is seen against the wall from the side.
+
+``gaslight2usd bench --suite chain --scene panels --scene bulb`` measures what it buys
+(the lights' power at the probes, ``light_dist_*``, ``floating_share``).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..cameras import PinholeCamera
-from ..capture import capture_space
-from ..sightings import Sightings
+from ..capture import CaptureSpace, capture_space
+from ..sightings import PeakMap, Sightings, peak_map
 from ..splats import SplatScene
 from ..surroundings import splat_sigma
 from .light_seeds import MAX_CONE_DEG, framing
 
 RAY_STEPS = 128
-"""Samples along a sunk splat's ray where it is tested against the captured space."""
+"""Samples along a light splat's ray where it is tested against the captured space."""
+BISECTIONS = 6
+"""Halvings of the step where the ray leaves the space (a room's diagonal over
+:data:`RAY_STEPS`, 5 cm, to under a millimetre)."""
+OFF_SURFACE_SHARE = 0.1
+"""A broad light's splat farther than this share of its distance from the room's
+boundary (in front or behind, along its photo's ray) is moved onto it."""
+MIN_LIT_SHARE = 1.0
+"""...only where this share of the photos framing the new place show light there: all
+of them (a light moved where some photo saw none contradicts that photo; this also
+refuses a window that something in front hides from some photo)."""
 
 
 @dataclass
@@ -64,68 +86,178 @@ class SurfacedLights:
                 "mean_move": round(self.mean_move, 4), "refused": self.refused}
 
 
-def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera], whites: np.ndarray,
+def _exit_along(space: CaptureSpace, eye: np.ndarray, pos: np.ndarray, span: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Where the rays from ``eye`` (K, 3) through ``pos`` (K, 3), followed to ``span``
+    (K,) times the splat's distance, leave ``space``'s sealed boundary (the surfaces'
+    planes): the distance ratio there (K,), and whether the ray starts inside and leaves
+    it (K,). :data:`RAY_STEPS` samples find the first one outside, then
+    :data:`BISECTIONS` halvings the crossing before it."""
+    rows = np.arange(len(pos))
+    t = span[:, None] * np.linspace(0.0, 1.0, RAY_STEPS + 1)[None, 1:]  # (K, S)
+    along = eye[:, None] + (pos - eye)[:, None, :] * t[..., None]  # (K, S, 3)
+    inside = space.inside(along.reshape(-1, 3), boundary="sealed").reshape(len(pos), -1)
+    first_out = np.argmin(inside, axis=1)
+    leaves = inside[:, 0] & ~inside.all(axis=1)
+    lo = t[rows, np.maximum(first_out - 1, 0)]
+    hi = t[rows, first_out]
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        ins = space.inside(eye + (pos - eye) * mid[:, None], boundary="sealed")
+        lo, hi = np.where(ins, mid, lo), np.where(ins, hi, mid)
+    return lo, leaves
+
+
+def _seen_lit(points: np.ndarray, cameras: list[PinholeCamera],
+              views: Sequence[np.ndarray | PeakMap], whites: np.ndarray, weights: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """(K, V) bool each: which photos frame each point, and which of those show light at
+    or over their white there (the brightest of the 3 x 3 blocks of the full-size peaks
+    round its pixel: a splat has a size, and an outline's edge is a pixel uncertain)."""
+    framed = framing(points, cameras, margin=0.0)
+    lit = np.zeros_like(framed)
+    for v, (cam, view) in enumerate(zip(cameras, views, strict=True)):
+        if not framed[:, v].any():
+            continue
+        peaks = view if isinstance(view, PeakMap) else peak_map(view, weights, None)
+        near = ndimage.maximum_filter(peaks.peaks, size=3, mode="nearest")
+        uv, _ = cam.project(points[framed[:, v]])
+        col = np.clip((uv[:, 0] * peaks.size[0] / cam.width / peaks.block).astype(int), 0,
+                      near.shape[1] - 1)
+        row = np.clip((uv[:, 1] * peaks.size[1] / cam.height / peaks.block).astype(int), 0,
+                      near.shape[0] - 1)
+        lit[framed[:, v], v] = near[row, col] >= whites[v]
+    return framed, lit
+
+
+@dataclass
+class _Moves:
+    """Splats to move along rays from their eyes: ``pos' = eye + (pos - eye) * ratio``."""
+
+    idx: np.ndarray
+    eye: np.ndarray
+    ratio: np.ndarray
+    refused: int
+
+    @classmethod
+    def none(cls) -> _Moves:
+        return cls(np.zeros(0, int), np.zeros((0, 3)), np.zeros(0), 0)
+
+
+def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: np.ndarray,
+                  outside: np.ndarray, eyes: np.ndarray, space: CaptureSpace,
+                  cameras: list[PinholeCamera]) -> _Moves:
+    """Compact lights (the bright splats ``idx`` one compact ``region`` holds) with a
+    splat ``outside`` the space, moved whole along their photo's rays (from ``eyes``,
+    per region) until their power-weighted centre is on the boundary: the photo draws
+    them on the same pixels, their shape kept."""
+    sunk = np.unique(region[outside])
+    if not len(sunk):
+        return _Moves.none()
+    members = np.isin(region, sunk)
+    idx, region = idx[members], region[members]
+    _, group = np.unique(region, return_inverse=True)
+    w = np.bincount(group, power[idx])
+    centre = np.stack([np.bincount(group, power[idx] * pos[idx, k]) for k in range(3)], 1)
+    centre /= np.maximum(w, 1e-30)[:, None]
+    eye = eyes[sunk]
+    ratio, ok = _exit_along(space, eye, centre, np.ones(len(sunk)))
+    ok &= ratio < 1.0
+    # only where the one photo it is moved along frames the new place (elsewhere the
+    # photos' parallax placed the light, and a bright splat outside the space on its
+    # rays is something else: the lit ceiling behind a lamp, or what a shade hides from
+    # the space's one viewpoint)
+    refused = ok & (framing(eye + (centre - eye) * ratio[:, None], cameras,
+                            margin=0.0).sum(axis=1) > 1)
+    go = (ok & ~refused)[group]
+    return _Moves(idx[go], eye[group[go]], ratio[group[go]], int(refused[group].sum()))
+
+
+def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
+                       eyes: np.ndarray, space: CaptureSpace, sightings: Sightings,
+                       cameras: list[PinholeCamera], views: Sequence[np.ndarray | PeakMap],
+                       whites: np.ndarray, weights: np.ndarray) -> _Moves:
+    """Bright splats ``idx`` held only by broad outlines (nearest: ``region``) more than
+    :data:`OFF_SURFACE_SHARE` off the sealed boundary along their photo's ray (from
+    ``eyes``, per region), moved onto it where the photos agree."""
+    if not len(idx):
+        return _Moves.none()
+    eye = eyes[region]
+    dist = np.linalg.norm(pos[idx] - eye, axis=1)
+    # followed as far as the room's box reaches, in front of the boundary or behind it
+    far = float(np.linalg.norm(space.box[1] - space.box[0]))
+    ratio, ok = _exit_along(space, eye, pos[idx], np.maximum(far / np.maximum(dist, 1e-9),
+                                                              1.0))
+    ok &= np.abs(ratio - 1.0) > OFF_SURFACE_SHARE * ratio
+    target = eye + (pos[idx] - eye) * ratio[:, None]
+    # only where the photos that frame the new place show light there (a lit shade
+    # hanging in front of a wall stays: photos from the side see the wall behind it)
+    frames, lit = _seen_lit(target, cameras, views, whites, weights)
+    alone = ok & (lit.sum(axis=1) < MIN_LIT_SHARE * frames.sum(axis=1))
+    # and a light moves whole or not at all: where most of its splats would contradict a
+    # photo, none of them moves (a shade's middle, behind it from every photo, is no
+    # wall light). A light: the splats of outlines that hold some splat in common.
+    held = sightings.holding(pos[idx]).astype(np.int32)
+    _, component = connected_components(csr_matrix(held.T @ held), directed=False)
+    light = component[region]
+    count = light.max() + 1
+    share = (np.bincount(light, alone, minlength=count)
+             / np.maximum(np.bincount(light, ok, minlength=count), 1))
+    refused = ok & (alone | (share[light] > 0.5))
+    go = ok & ~refused
+    return _Moves(idx[go], eye[go], ratio[go], int(refused.sum()))
+
+
+def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
+                        views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
                         weights: np.ndarray, sightings: Sightings
                         ) -> tuple[SplatScene, SurfacedLights]:
-    """``scene`` with its sunk bright splats moved onto the surface they are seen
-    through (module docstring), and what moved. ``cameras``: the training views;
-    ``whites`` (V,): each view's white, in the scene's units; ``weights``: luminance
-    weights; ``sightings``: the views' light regions
-    (:func:`gaslight_usd.sightings.sight_lights`, same views)."""
+    """``scene`` with its sunk compact lights and its off-surface broad lights moved
+    onto the room's boundary along the photos' rays (module docstring), and what
+    moved. ``cameras``: the training views; ``views``: their photos (linear HDR, or
+    their :class:`gaslight_usd.sightings.PeakMap`); ``whites`` (V,): each view's white,
+    in the scene's units; ``weights``: luminance weights; ``sightings``: the views' light
+    regions (:func:`gaslight_usd.sightings.sight_lights`, same views)."""
     lum = scene.base_colours @ np.asarray(weights, np.float32)
     nothing = SurfacedLights(0, 0.0, 0.0, 0)
-    compact = np.flatnonzero(sightings.whole
-                             & (sightings.radii <= np.radians(MAX_CONE_DEG)))
     bright = np.flatnonzero((lum > float(np.median(whites))) & (scene.opacities > 0.05))
-    if not len(bright) or not len(compact) or len(cameras) < 2:
+    if not len(bright) or not sightings.count or len(cameras) < 2:
         return scene, nothing
     pos = scene.positions.astype(np.float64)
-    # the view whose compact outline holds each bright splat (nearest its axis)
-    angle = sightings.angles(pos[bright])[:, compact] / sightings.radii[compact][None]
-    nearest = np.argmin(angle, axis=1)
-    held = angle[np.arange(len(bright)), nearest] <= 1.0
-    best_view = np.where(held, sightings.view[compact][nearest], -1)
+    compact = sightings.whole & (sightings.radii <= np.radians(MAX_CONE_DEG))
+    # the region holding each bright splat (nearest its axis), a compact one first
+    angle = sightings.angles(pos[bright]) / np.maximum(sightings.radii, 1e-9)[None]
+    row = np.arange(len(bright))
+    near_c = np.argmin(np.where(compact[None], angle, np.inf), axis=1)
+    near_b = np.argmin(np.where(compact[None], np.inf, angle), axis=1)
+    held_c = compact[near_c] & (angle[row, near_c] <= 1.0)
+    held_b = ~held_c & ~compact[near_b] & (angle[row, near_b] <= 1.0)
     centres = np.array([cam.center for cam in cameras])
+    eyes = centres[sightings.view]  # per region
     probe = scene.subset(np.arange(scene.count))
     probe.metadata = {**scene.metadata, "exposure_scale": float(np.median(whites))}
-    space = capture_space(probe, centres)
+    space = capture_space(probe, centres, planes=True)
     sigma = splat_sigma(scene)
-    outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
-    cand = (best_view >= 0) & outside
-    if not cand.any():
-        return scene, nothing
-    idx = bright[cand]
-    eye = centres[best_view[cand]]  # (K, 3)
-    t = np.linspace(0.0, 1.0, RAY_STEPS + 1)[1:]
-    along = eye[:, None] + (pos[idx] - eye)[:, None, :] * t[None, :, None]  # (K, S, 3)
-    # the last sample before the ray first leaves the space, each sample with the reach
-    # the lights finder gives a splat (two sigmas) shrunk to its distance there
-    reach = 2.0 * sigma[idx][:, None] * t[None]
-    inside = space.inside(along.reshape(-1, 3), reach.ravel()).reshape(len(idx), -1)
-    first_out = np.argmin(inside, axis=1)
-    leaves = inside[:, 0] & ~inside[:, -1]
-    if not leaves.any():
-        return scene, nothing
-    target = eye + (pos[idx] - eye) * t[np.maximum(first_out - 1, 0)][:, None]
-    # only where the one photo it is moved along frames the new place: elsewhere the
-    # photos' parallax placed the light, and a splat outside the space on its rays is
-    # something else (the lit ceiling behind a lamp, or what a shade hides from the
-    # space's one viewpoint)
-    refused = leaves & (framing(target, cameras, margin=0.0).sum(axis=1) > 1)
-    move = leaves & ~refused
-    idx_moved = idx[move]
     area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
-    power = lum * area
+    power = (lum * area).astype(np.float64)
+    # outside as the lights finder tells backdrop (gaslight_usd.capture.backdrop_mask)
+    outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright], boundary="either")
+    moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c], eyes,
+                           space, cameras),
+             _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
+                                cameras, views, np.asarray(whites, np.float64), weights)]
+    idx = np.concatenate([m.idx for m in moves])
+    if not len(idx):
+        return scene, SurfacedLights(0, 0.0, 0.0, sum(m.refused for m in moves))
+    eye = np.concatenate([m.eye for m in moves])
+    ratio = np.concatenate([m.ratio for m in moves])
+    target = eye + (pos[idx] - eye) * ratio[:, None]
     out = scene.subset(np.arange(scene.count))
-    ratio = (np.linalg.norm(target[move] - eye[move], axis=1)
-             / np.maximum(np.linalg.norm(pos[idx_moved] - eye[move], axis=1), 1e-12))
-    out.positions[idx_moved] = target[move].astype(out.positions.dtype)
-    out.log_scales[idx_moved] = (scene.log_scales[idx_moved]
-                                 + np.log(ratio)[:, None]).astype(out.log_scales.dtype)
-    report = SurfacedLights(
-        moved=int(len(idx_moved)),
-        power_share=float(power[idx_moved].sum() / max(power[bright].sum(), 1e-30)),
-        mean_move=float(np.linalg.norm(target[move] - pos[idx_moved], axis=1).mean())
-        if len(idx_moved) else 0.0,
-        refused=int(refused.sum()))
-    return out, report
+    out.positions[idx] = target.astype(out.positions.dtype)
+    out.log_scales[idx] = (scene.log_scales[idx]
+                           + np.log(ratio)[:, None]).astype(out.log_scales.dtype)
+    return out, SurfacedLights(
+        moved=int(len(idx)),
+        power_share=float(power[idx].sum() / max(power[bright].sum(), 1e-30)),
+        mean_move=float(np.linalg.norm(target - pos[idx], axis=1).mean()),
+        refused=sum(m.refused for m in moves))

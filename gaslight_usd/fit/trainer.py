@@ -464,21 +464,21 @@ class Trainer:
                             self.y_weights.cpu().numpy()).as_dict()
 
     def _surface_sunk_lights(self, scene: SplatScene) -> tuple[SplatScene, SurfacedLights]:
-        """Compact lights one photo frames, sunk behind the surface they are seen through,
-        moved onto it (:mod:`.sunk_lights`); only where some view clipped (the photos'
-        light regions say which splats are such lights)."""
+        """Compact lights one photo frames sunk behind a surface, and broad lights off
+        their wall, moved onto the room's boundary (:mod:`.sunk_lights`); only where some
+        view clipped (the photos' light regions say which splats are such lights)."""
         whites = self._view_whites(self.train)
         if not self.cfg.clip_bounds or whites is None:
             return scene, SurfacedLights(0, 0.0, 0.0, 0)
         cams = self.cameras()
         views = [cams[i] for i in self.train]
         weights = self.y_weights.cpu().numpy()
-        sightings = sight_lights(views, [self.data.light_views()[i] for i in self.train],
-                                 whites, weights)
-        scene, surfaced = surface_sunk_lights(scene, views, whites, weights, sightings)
+        photos = [self.data.light_views()[i] for i in self.train]
+        sightings = sight_lights(views, photos, whites, weights)
+        scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings)
         if surfaced.moved:
-            self.progress.message(f"moved {surfaced.moved} light splat(s) sunk behind the "
-                                  "surface they are seen through onto it")
+            self.progress.message(f"moved {surfaced.moved} light splat(s) off the room's "
+                                  "surfaces back onto them")
         return scene, surfaced
 
     def _weigh_clipped_lights(self, scene: SplatScene, backdrop: int,
