@@ -94,7 +94,10 @@ MAX_CLUSTERS = 96
 power, the example's lamp ranked below 48 window and wall fragments); the rest are not
 lights."""
 MIN_POWER_SHARE = 1e-3
-"""Clusters with less than this share of the brightest cluster's power are not lights."""
+"""Clusters with less than this share of the brightest cluster's power are not lights,
+unless the photos outlined a light there (:func:`outlined_lights`): a clipped bare
+bulb's splats hold its fill, a lower bound that on the chain bench's ``bulb`` room is
+6e-4 of its window's (docs/measurements.md, session 19)."""
 POWER_UNCERTAINTY_STOPS = {"measured": 0.25, "predicted": 3.0, "inferred": 4.0}
 """How far a light's power may be off, by where it came from: merged brackets measure it
 (a quarter stop covers the fit's error); the fast exposure predictor's median error
@@ -326,6 +329,20 @@ def outlined_lights(metadata: Mapping[str, Any]) -> np.ndarray:
     return np.asarray(rows, np.float64).reshape(-1, 4)
 
 
+def _near_outlined(points: np.ndarray, power: np.ndarray, labels: np.ndarray,
+                   outlined: np.ndarray) -> np.ndarray:
+    """(C,) bool: cluster ``labels``' power-weighted centres (of ``points`` (N, 3) by
+    ``power`` (N,)) lie within :data:`OUTLINE_REACH` sizes of an ``outlined`` light."""
+    n = int(labels.max()) + 1 if len(labels) else 0
+    if not len(outlined) or not n:
+        return np.zeros(n, bool)
+    w = np.bincount(labels, power, minlength=n) + 1e-30
+    centre = np.stack([np.bincount(labels, power * points[:, k], minlength=n)
+                       for k in range(3)], 1) / w[:, None]
+    gap = np.linalg.norm(centre[:, None] - outlined[None, :, :3], axis=2) / outlined[None, :, 3]
+    return gap.min(axis=1) <= OUTLINE_REACH
+
+
 def _components(points: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Connected-component label (N,) of points linked when closer than reach_i + reach_j."""
     n = len(points)
@@ -538,7 +555,10 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     areas = np.bincount(labels, area[candidates], minlength=n_clusters)
     level_of = power / np.maximum(areas, 1e-30)
     order = np.argsort(-level_of)
-    order = order[power[order] >= MIN_POWER_SHARE * power.max()][:MAX_CLUSTERS]
+    outlined = outlined_lights(scene.metadata)
+    order = order[(power[order] >= MIN_POWER_SHARE * power.max())
+                  | _near_outlined(scene.positions[candidates], radiance[candidates]
+                                   * area[candidates], labels, outlined)[order]][:MAX_CLUSTERS]
     not_backdrop = ~backdrop
     headroom_gain = clipped_gain(radiance, white, source)
     emitting: list[np.ndarray] = []
@@ -566,7 +586,6 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
         return {"mean_radiance": level, "irradiance_max": e_max, "diffuse_limit": limit,
                 "headroom_stops": headroom}
 
-    outlined = outlined_lights(scene.metadata)
     for c in order:
         idx = candidates[labels == c]
         test = emitter_test(idx, positions[idx])

@@ -368,3 +368,22 @@ def test_a_light_the_fit_weighed_says_its_power_was_inferred():
     assert (lamp.power_source, lamp.power_uncertainty_stops) == ("inferred", 0.7)
     assert lamp.test["inferred_factor"] == 96.0
     assert window.power_source == "predicted"
+
+
+def test_a_clipped_bulb_the_photos_outlined_is_a_light_however_faint_its_fill():
+    """A bare bulb's splats hold the uplift's fill, a lower bound that can be under a
+    thousandth of a window's power: kept where the photos outlined a light there."""
+    scene, parts = room_scene()
+    lamp = parts["lamp"]
+    scene.log_scales[lamp] = np.log(0.005)
+    scene.sh[lamp] = scene.sh[lamp] * (15.0 / 200.0)  # the fill, about 15x the white
+    found = search_lights(scene)
+    assert not found.emitters[lamp].any()  # too faint beside the window to be a light
+    scene.metadata["light_seeds"] = [{"position": LAMP.tolist(), "size": 0.05,
+                                      "views": [0, 1], "framed": 2}]
+    found = search_lights(scene)
+    assert found.emitters[lamp].all()
+    lamp_light = min(found.lights, key=lambda li: np.linalg.norm(li.position - LAMP))
+    assert np.linalg.norm(lamp_light.position - LAMP) < 0.05
+    assert float(lamp_light.power.max()) < 1e-3 * max(float(li.power.max())
+                                                      for li in found.lights)
