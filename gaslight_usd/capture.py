@@ -95,26 +95,20 @@ class CaptureSpace:
         ``reach`` (scalar or (N,)) lets a point lie that much beyond the boundary
         (a splat's own extent). ``boundary``: ``open``, the visible dim surfaces (they
         fall through at a window); ``sealed``, the surfaces' local planes across such
-        holes (a window closed by its wall); ``either``, the farther of the two (a
-        window on its wall's plane is in the room, though the surfaces' depth noise
-        puts the open boundary in front of it there). The last two need ``planes``.
+        holes (a window closed by its wall; needs ``planes``).
         """
-        if boundary not in ("open", "sealed", "either"):
-            raise ValueError(f"boundary must be open, sealed or either, not {boundary!r}")
+        if boundary not in ("open", "sealed"):
+            raise ValueError(f"boundary must be open or sealed, not {boundary!r}")
+        if boundary == "sealed" and self.planes is None:
+            raise ValueError("a sealed boundary needs capture_space(..., planes=True)")
         points = np.asarray(points, np.float64).reshape(-1, 3)
         reach = np.broadcast_to(np.asarray(reach, np.float64), (len(points),))
         seen = np.zeros(len(points), bool)
         in_box = np.all((points >= self.box[0]) & (points <= self.box[1]), axis=1)
-        planes = self.planes if boundary != "open" else None
-        if boundary != "open" and planes is None:
-            raise ValueError(f"a {boundary} boundary needs capture_space(..., planes=True)")
         for k, view in enumerate(self.views):
             depth = view.depth
-            if planes is not None:
-                plane = planes[k]
-                depth = np.where(np.isfinite(plane),
-                                 plane if boundary == "sealed" else np.maximum(plane, depth),
-                                 depth)
+            if boundary == "sealed":
+                depth = np.where(np.isfinite(self.planes[k]), self.planes[k], depth)
             b, r = view.bin_of(points)
             limit = depth[b] * (1.0 + DEPTH_SLACK) + reach
             seen |= r <= limit
@@ -138,7 +132,7 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None,
                   planes: bool = False) -> CaptureSpace:
     """The captured space of ``scene`` (module docstring); ``viewpoints`` override the
     cameras; ``planes``: also the surfaces' local planes (:attr:`CaptureSpace.planes`,
-    for the ``sealed`` and ``either`` boundaries)."""
+    for the ``sealed`` boundary)."""
     opaque = scene.opacities > OPAQUE
     if viewpoints is None:
         viewpoints = camera_centres(scene.metadata)
@@ -192,9 +186,6 @@ def _planes(scene: SplatScene, view: Surroundings, bright: np.ndarray) -> np.nda
 
 
 def backdrop_mask(scene: SplatScene, space: CaptureSpace) -> np.ndarray:
-    """(N,) splats outside the captured space (beyond the farther of its open boundary
-    and its surfaces' planes, when it has them), or the fit's own unseen-surface
-    backdrop."""
-    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene),
-                            boundary="open" if space.planes is None else "either")
+    """(N,) splats outside the captured space, or the fit's own unseen-surface backdrop."""
+    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene))
     return outside | fit_backdrop_mask(scene)

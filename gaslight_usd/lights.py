@@ -531,7 +531,7 @@ def _weighed_by_the_fit(light: Light, metadata: Mapping[str, Any]) -> None:
 def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                   source: str | None = None) -> LightSearch:
     """Find the lights of ``scene`` (module docstring) and say how."""
-    space = space or capture_space(scene, planes=True)
+    space = space or capture_space(scene)
     source = source or power_source(scene.metadata)
     white = white_level(scene.metadata)
     headroom = explain_headroom_stops(source)

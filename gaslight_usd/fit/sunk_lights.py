@@ -241,7 +241,7 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
     power = (lum * area).astype(np.float64)
     # outside as the lights finder tells backdrop (gaslight_usd.capture.backdrop_mask)
-    outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright], boundary="either")
+    outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
     moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c], eyes,
                            space, cameras),
              _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
