@@ -17,13 +17,16 @@ the cone of a light region of some photo (:mod:`gaslight_usd.sightings`) is on t
 photo's rays, and it is moved along them, its scales in proportion so that the photo
 draws it on the same pixels:
 
-- held by a **compact** outline (whole, at most
-  :data:`gaslight_usd.fit.light_seeds.MAX_CONE_DEG` across) and outside the captured
-  space (:mod:`gaslight_usd.capture`: the free space the cameras' median point sees,
-  bounded by the fit's dim opaque surfaces), to where the ray leaves the space. Refused
-  where another training photo frames the new place: there parallax placed the light,
-  and a bright splat outside the space on a compact light's rays is something else (the
-  lit ceiling behind a lamp; what a lampshade hides from the space's one viewpoint).
+- a light held by a **compact** outline (whole, at most
+  :data:`gaslight_usd.fit.light_seeds.MAX_CONE_DEG` across) with splats outside the
+  captured space (:mod:`gaslight_usd.capture`: the free space the cameras' median point
+  sees, bounded by the fit's dim opaque surfaces), whole: all the splats that outline
+  holds, by one ratio, until their power-weighted centre is where the ray leaves the
+  space (per splat, the boundary's bin-to-bin depth noise broke a panel into fragments
+  the lights finder no longer took for a light). Refused where another training photo
+  frames the new place: there parallax placed the light, and a bright splat outside
+  the space on a compact light's rays is something else (the lit ceiling behind a lamp;
+  what a lampshade hides from the space's one viewpoint).
 - held only by **broad** outlines (windows, skylights, large panels), more than
   :data:`OFF_SURFACE_SHARE` of its distance in front of or behind the room's boundary,
   onto it: the captured space's *sealed* boundary, the local planes of the surfaces,
@@ -79,7 +82,8 @@ class SurfacedLights:
     mean_move: float
     """Mean distance moved (scene units)."""
     refused: int
-    """Sunk splats left where they were: more than one photo frames the new place."""
+    """Splats left where they were: a sunk light's new place more than one photo frames,
+    or a broad light's some photo framing it shows no light at."""
 
     def as_dict(self) -> dict:
         return {"moved": self.moved, "power_share": round(self.power_share, 4),
