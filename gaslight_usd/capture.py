@@ -45,6 +45,11 @@ DEPTH_SLACK = 0.0
 """A point may lie this share of the surface's distance beyond it and still be inside."""
 OPAQUE = 0.1
 """Splats fainter than this opacity do not make surfaces (they are haze)."""
+PLANE_SPREAD = 0.15
+"""...and only where those surfaces lie on one plane to this share of their depth (RMS):
+a fit's walls scatter 5-15 % in depth; a desk under a window, or a corner, is off more
+(a plane through both put a window's corner 0.45 m into the chain bench's ``panels``
+room)."""
 SEAL_DEG = 22.5
 """The surfaces' local planes (:attr:`CaptureSpace.planes`) are fitted to the surfaces
 within this angle of each direction: three bins of
@@ -181,8 +186,8 @@ def _planes(scene: SplatScene, view: Surroundings, bright: np.ndarray) -> np.nda
     # only across the holes: elsewhere the open boundary stands (a ceiling few photos
     # see is smeared deep, and its planes with it: the chain bench's panels room's
     # ceiling splats lie 0.7 m over it at the median)
-    return np.where(holes, planar_fill(view.own_depth, view.directions, ~holes, SEAL_DEG),
-                    np.inf)
+    return np.where(holes, planar_fill(view.own_depth, view.directions, ~holes, SEAL_DEG,
+                                       PLANE_SPREAD), np.inf)
 
 
 def backdrop_mask(scene: SplatScene, space: CaptureSpace) -> np.ndarray:

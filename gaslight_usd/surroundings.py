@@ -166,10 +166,11 @@ def nearest_around(depth: np.ndarray, bins: tuple[int, int]) -> np.ndarray:
 
 
 def planar_fill(depth: np.ndarray, directions: np.ndarray, ring: np.ndarray,
-                radius_deg: float) -> np.ndarray:
+                radius_deg: float, max_spread: float = np.inf) -> np.ndarray:
     """(B,) each bin's distance were the surfaces of the ``ring`` bins within
     ``radius_deg`` of it (their finite ``depth``) one plane; ``inf`` where too few
-    surround it, or spread along one line only.
+    surround it, spread along one line only, or off the plane by more than
+    ``max_spread`` of their depth (RMS).
 
     Seen from a point, a plane ``n . x = h`` lies at ``h / (n . d)`` along a unit
     direction ``d``: its inverse depth is *linear* in ``d``. Fitting ``1 / depth =
@@ -191,8 +192,13 @@ def planar_fill(depth: np.ndarray, directions: np.ndarray, ring: np.ndarray,
     if not ok.any():
         return fill
     coef = np.linalg.solve(a_mat[ok], b_vec[ok][..., None])[..., 0]
+    # the ring's own depths off that plane (relative): a ring round two surfaces at
+    # different depths (a desk under a window) has no one plane
+    off = (coef @ dirs[ring].T) * depth[ring][None] - 1.0
+    spread = np.sqrt((w[ok] * off**2).sum(1) / w[ok].sum(1))
     inv = np.einsum("bi,bi->b", coef, dirs[ok])
-    fill[ok] = np.where(inv > 0, 1.0 / np.maximum(inv, 1e-12), np.inf)
+    fill[ok] = np.where((inv > 0) & (spread <= max_spread), 1.0 / np.maximum(inv, 1e-12),
+                        np.inf)
     return fill
 
 
