@@ -33,6 +33,19 @@ def test_a_plane_is_carried_across_a_hole_exactly():
     np.testing.assert_allclose(fill[ring], depth[ring], rtol=1e-6)
 
 
+def test_no_plane_where_the_surroundings_are_two_surfaces():
+    """A ring half on the wall, half on a desk 1.3 m in front of it: no one plane."""
+    rows, cols = BINS
+    dirs = latlong_directions(cols, rows).reshape(-1, 3)
+    normal = np.array([1.0, 0.0, 0.0])
+    wall = _plane_depth(dirs, normal, 2.5)
+    desk = np.where(dirs[:, 1] < -0.05, _plane_depth(dirs, normal, 1.2), wall)  # lower half
+    hole = (dirs @ normal) > np.cos(np.radians(10.0))
+    for depth, planar in ((wall, True), (desk, False)):
+        fill = planar_fill(np.where(hole, np.inf, depth), dirs, ~hole, 22.5, max_spread=0.15)
+        assert np.isfinite(fill[hole]).all() == planar
+
+
 def test_no_plane_where_too_few_surround():
     rows, cols = BINS
     dirs = latlong_directions(cols, rows).reshape(-1, 3)
