@@ -299,3 +299,32 @@ def test_the_examples_lamp_is_weighed_from_its_photos(tmp_path):
     plain = read_ply(tmp_path / "uplift.ply").metadata
     assert plain["provenance"]["config"]["infer_power"] is False
     assert plain["fit_metrics"]["clipped_lights"] == []
+
+
+def _two_lights(pattern_b, k_a: float, k_b: float, seed: int = 0):
+    """Radiances of 300 matte points (albedos 0.2-0.5) lit by the rest of the room, which
+    falls off across them, and two lights at ``2**k`` times their fills; light A's
+    irradiance grows across the points, light B's follows ``pattern_b`` (per point, at
+    its fill)."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 1.0, 300)
+    irr = np.stack([0.2 * (2.0 - x), 0.01 * (0.2 + 2.0 * x), pattern_b(x)], axis=1)
+    albedo = rng.uniform(0.2, 0.5, 300)
+    radiance = albedo * (irr[:, 0] + 2.0**k_a * irr[:, 1] + 2.0**k_b * irr[:, 2]) / math.pi
+    return radiance, np.full(300, np.nan), irr
+
+
+def test_two_lights_the_surfaces_see_alike_share_one_factor():
+    """Where two lights light the surfaces alike the albedos pin their sum, not the
+    split: one factor for both (the separate search gives +4.9 and +1.6 here)."""
+    radiance, bound, irr = _two_lights(lambda x: 0.01 * (0.25 + 1.9 * x), 4.0, 4.0)
+    k = solve_factors(radiance, bound, irr)
+    assert k[0] == k[1]
+    assert abs(k[0] - 4.0) <= 0.5
+
+
+def test_two_lights_the_surfaces_tell_apart_keep_their_own_factors():
+    """Light B lights only the far half of the points: the albedos there say its factor."""
+    radiance, bound, irr = _two_lights(lambda x: 0.02 * (x > 0.5) * x, 2.0, 5.0)
+    k = solve_factors(radiance, bound, irr)
+    assert abs(k[0] - 2.0) <= 0.5 and abs(k[1] - 5.0) <= 0.5
