@@ -45,17 +45,17 @@ DEPTH_SLACK = 0.0
 """A point may lie this share of the surface's distance beyond it and still be inside."""
 OPAQUE = 0.1
 """Splats fainter than this opacity do not make surfaces (they are haze)."""
+SEAL_DEG = 22.5
+"""The surfaces' local planes (:attr:`CaptureSpace.planes`) are fitted to the surfaces
+within this angle of each direction: three bins of
+:data:`gaslight_usd.surroundings.BINS` each side, across a window 1 m wide seen from
+2.5 m."""
 PLANE_SPREAD = 0.15
 """...and only where those surfaces lie on one plane to this share of their depth (RMS):
 a fit's walls scatter 5-15 % in depth; a desk under a window, a corner or a smeared
 ceiling is off more (on the chain bench's ``panels`` room, seed 1, a plane through the
 smeared ceiling round a panel put the panel back 0.1-0.35 m above the ceiling; without
 it, 0.0-0.2 m under)."""
-SEAL_DEG = 22.5
-"""The surfaces' local planes (:attr:`CaptureSpace.planes`) are fitted to the surfaces
-within this angle of each direction: three bins of
-:data:`gaslight_usd.surroundings.BINS` each side, across a window 1 m wide seen from
-2.5 m."""
 
 
 def camera_centres(metadata: Mapping[str, Any]) -> np.ndarray | None:

@@ -175,8 +175,8 @@ def planar_fill(depth: np.ndarray, directions: np.ndarray, ring: np.ndarray,
     Seen from a point, a plane ``n . x = h`` lies at ``h / (n . d)`` along a unit
     direction ``d``: its inverse depth is *linear* in ``d``. Fitting ``1 / depth =
     a . d`` over the ring therefore carries a wall straight across a window in it (a
-    hole the ring leaves out), evens out the fit's depth noise along it, and where the
-    ring spans two walls (a corner) gives a depth between theirs.
+    hole the ring leaves out) and evens out the fit's depth noise along it; where the
+    ring spans two surfaces (a corner, a desk under a window) ``max_spread`` says no.
     """
     depth = np.asarray(depth, np.float64)
     dirs = np.asarray(directions, np.float64)
