@@ -273,7 +273,7 @@ def power_source(metadata: Mapping[str, Any]) -> str:
     prov = metadata.get("provenance")
     method = str((prov.get("hdr_method") if isinstance(prov, Mapping) else None)
                  or metadata.get("hdr_method") or "").lower()
-    if "bracket" in method:
+    if "bracket" in method or "measured" in method:
         return "measured"
     if "recursive" in method or "diffusion" in method or "predict" in method:
         return "predicted"

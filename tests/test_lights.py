@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from gaslight_usd import lights
+from gaslight_usd.bench.suite_chain import TRUTH_HDR_METHOD
 from gaslight_usd.capture import capture_space
-from gaslight_usd.lights import find_lights, search_lights
+from gaslight_usd.lights import find_lights, power_source, search_lights
 from gaslight_usd.probe import clearance, default_probe
 from gaslight_usd.splats import SplatScene
 from gaslight_usd.usd.instancer import emitter_mask
@@ -85,7 +86,7 @@ def test_the_old_rule_takes_lit_walls_and_backdrop_for_lights():
     assert old[parts["lit"]].all() and old[parts["smear"]].all() and old[parts["tiles"]].all()
 
 
-@pytest.mark.parametrize("method", ["recursive", "bracket"])
+@pytest.mark.parametrize("method", ["recursive", "bracket", TRUTH_HDR_METHOD])
 def test_lights_are_the_lamp_and_the_window(method):
     scene, parts = room_scene(method)
     found = search_lights(scene)
@@ -105,11 +106,18 @@ def test_lights_are_the_lamp_and_the_window(method):
     np.testing.assert_allclose(lamp.power, 30 * area * np.array([200.0, 160.0, 100.0]),
                                rtol=1e-4)
     np.testing.assert_allclose(lamp.colour, [1.0, 0.8, 0.5], rtol=1e-4)
-    assert lamp.power_source == ("measured" if method == "bracket" else "predicted")
+    assert lamp.power_source == ("predicted" if method == "recursive" else "measured")
     assert lamp.test["mean_radiance"] > lamp.test["diffuse_limit"]
     summary = found.summary()
     assert summary["lights"][1]["power_source"] == lamp.power_source
     assert "rho" in summary["rule"] or "0.9" in summary["rule"]
+
+
+def test_power_source_follows_the_hdr_method():
+    assert power_source({"provenance": {"hdr_method": "bracket"}}) == "measured"
+    assert power_source({"hdr_method": TRUTH_HDR_METHOD}) == "measured"  # the chain bench
+    assert power_source({"provenance": {"hdr_method": "recursive"}}) == "predicted"
+    assert power_source({}) == "inferred"  # HDR views of unknown making: a lower bound
 
 
 def with_far_backdrop(scene: SplatScene) -> SplatScene:

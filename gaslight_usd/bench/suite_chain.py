@@ -70,6 +70,9 @@ HIGHER_IS_BETTER = True
 TABLE = ("scene", "probe", "seconds", "irradiance_psnr", "relight_psnr", "pu21_psnr_peak",
          "power_err_stops_max")
 REFERENCES = ("truth HDR", "clipped photos")
+TRUTH_HDR_METHOD = "measured (the scene's true HDR views)"
+"""The ``hdr_method`` a fit from the true HDR views carries: its lights' power is
+measured (:func:`gaslight_usd.lights.power_source`)."""
 SCENES = ("room", "bulb", "panels", "shade")
 METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets",
            "recursive, uplift's power", "recursive + dark frames")
@@ -326,6 +329,10 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])
     result = fit_splats(data, cfg, seed=seed, progress=progress)
+    if method == "truth HDR":
+        # true radiance, as merged brackets measure it: the lights finder's clipped-source
+        # headroom (power unknown, 7 stops) would let the lamp explain the window away
+        result.scene.metadata["hdr_method"] = TRUTH_HDR_METHOD
     return result.scene, time.perf_counter() - t0, scale, result.metrics
 
 
