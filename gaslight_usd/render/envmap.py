@@ -125,11 +125,14 @@ def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndar
     limit = math.cos(math.radians(BLEND_DEG))
     feeds, total = [], np.zeros(len(dirs))
     for cam in cams:
-        local = dirs @ np.asarray(cam.R).T
-        idx = np.flatnonzero(local[:, 2] > limit)
-        z = local[idx, 2]
-        x = f * local[idx, 0] / z + size / 2.0
-        y = f * local[idx, 1] / z + size / 2.0
+        R = np.asarray(cam.R, np.float64)
+        # the view's axis first: only the directions within BLEND_DEG of it (an eighth
+        # of the sphere) are projected (a 2048-wide lookup took 5 s projecting all)
+        idx = np.flatnonzero(dirs @ R[2] > limit)
+        local = dirs[idx] @ R.T
+        z = local[:, 2]
+        x = f * local[:, 0] / z + size / 2.0
+        y = f * local[:, 1] / z + size / 2.0
         w = (z - limit) ** 2
         total[idx] += w
         feeds.append((idx, np.clip(x, 0.5, size - 0.5), np.clip(y, 0.5, size - 0.5), w))
