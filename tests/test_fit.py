@@ -157,6 +157,24 @@ def test_budget_caps_the_splat_count(synthetic):
     assert result.metrics["splats"] <= 450
 
 
+def test_splats_left_oversized_are_cut_and_the_cost_reported(synthetic):
+    """Blobs wider than max_final_scale of the extent are cut when training ends (a probe
+    inside one sees the set through it); the metrics say how many and what the held-out
+    views lost."""
+    root, _, _ = synthetic
+    data = load_fit_data(root / "hdr", root / "sparse")
+    result = fit_splats(data, tiny(iterations=48, max_final_scale=0.03), seed=0)
+    cut = result.metrics["oversized_cut"]
+    assert cut["splats"] > 0 and cut["limit"] > 0
+    # cut this tight, most of the small set goes: the held-out views see the holes
+    assert 0.0 < cut["held_out_stops_before"] < 1.0 < cut["held_out_stops_after"]  # 0.58, 8.5
+    fitted = result.scene.count - result.metrics["backdrop_splats"]
+    assert result.scene.scales[:fitted].max() <= cut["limit"] * (1 + 1e-4)
+    kept = fit_splats(data, tiny(iterations=48, max_final_scale=0.0), seed=0)
+    assert kept.metrics["oversized_cut"]["splats"] == 0
+    assert kept.scene.scales.max() > cut["limit"]
+
+
 def test_mismatched_views_and_poses_fail_before_work(synthetic, tmp_path):
     root, truth, cams = synthetic
     hdr = tmp_path / "hdr"

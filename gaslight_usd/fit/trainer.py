@@ -272,6 +272,26 @@ class Trainer:
         self.model.prune(idle)
         return int(idle.sum())
 
+    def _cut_oversized(self) -> dict[str, Any]:
+        """Cut the splats larger than ``max_final_scale`` of the extent (its docstring says
+        why) and say what that cost the held-out views (log-luminance RMSE, stops)."""
+        limit = self.cfg.max_final_scale * self.extent
+        out: dict[str, Any] = {"splats": 0, "limit": round(limit, 5)}
+        if limit <= 0:
+            return out
+        size = torch.exp(self.model.t["log_scales"].detach()).max(dim=1).values
+        big = size > limit
+        out["splats"] = int(big.sum())
+        if not out["splats"]:
+            return out
+        views = self.held or self.train[:: max(1, len(self.train) // 4)]
+        degree = self.active_degree()
+        before = self.evaluate(views, degree)["log_lum_rmse_stops"]
+        self.model.prune(big)
+        after = self.evaluate(views, degree)["log_lum_rmse_stops"]
+        out.update(held_out_stops_before=round(before, 4), held_out_stops_after=round(after, 4))
+        return out
+
     def _choose_degree(self) -> tuple[int, dict[str, float]]:
         views = self.held or self.train[:: max(1, len(self.train) // 4)]
         top = self.active_degree()
@@ -519,6 +539,7 @@ class Trainer:
         lights' power, score the result and save the last checkpoint."""
         cfg = self.cfg
         pruned = self._prune_idle()
+        oversized = self._cut_oversized()
         degree, scores = self._choose_degree()
         scene = self.model.to_scene(degree, {})
         scene, surfaced = self._surface_sunk_lights(scene)
@@ -552,6 +573,7 @@ class Trainer:
             "iterations": self.step,
             "stop_reason": stop_reason,
             "pruned_idle": pruned,
+            "oversized_cut": oversized,
             "init": self.init_method,
             "fit_seconds": round(seconds, 2),
             "init_seconds": round(init_seconds, 2),
