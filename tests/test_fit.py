@@ -158,12 +158,13 @@ def test_budget_caps_the_splat_count(synthetic):
 
 
 def test_splats_left_oversized_are_cut_and_the_cost_reported(synthetic):
-    """Blobs wider than max_final_scale of the extent are cut when training ends (a probe
-    inside one sees the set through it); the metrics say how many and what the held-out
-    views lost."""
+    """Blobs wider than max_final_scale of the extent (and max_final_medians of the
+    median splat) are cut when training ends (a probe inside one sees the set through
+    it); the metrics say how many and what the held-out views lost."""
     root, _, _ = synthetic
     data = load_fit_data(root / "hdr", root / "sparse")
-    result = fit_splats(data, tiny(iterations=48, max_final_scale=0.03), seed=0)
+    result = fit_splats(data, tiny(iterations=48, max_final_scale=0.03, max_final_medians=0.0),
+                        seed=0)
     cut = result.metrics["oversized_cut"]
     assert cut["splats"] > 0 and cut["limit"] > 0
     # cut this tight, most of the small set goes: the held-out views see the holes
@@ -173,6 +174,11 @@ def test_splats_left_oversized_are_cut_and_the_cost_reported(synthetic):
     kept = fit_splats(data, tiny(iterations=48, max_final_scale=0.0), seed=0)
     assert kept.metrics["oversized_cut"]["splats"] == 0
     assert kept.scene.scales.max() > cut["limit"]
+    # this coarse fit's splats are all wide: with the default guard (4 medians) only the
+    # outliers among them go
+    guarded = fit_splats(data, tiny(iterations=48, max_final_scale=0.03), seed=0)
+    guard = guarded.metrics["oversized_cut"]
+    assert guard["limit"] > 2 * cut["limit"] and 0 < guard["splats"] < cut["splats"] / 10
 
 
 def test_mismatched_views_and_poses_fail_before_work(synthetic, tmp_path):

@@ -50,6 +50,10 @@ class FitConfig:
     training (``max_scale`` 0.2) changed every fit's course (``bulb``, ``panels`` lost
     lights); cut at the end they cost the held-out views what the fit's metrics
     ``oversized_cut`` report (``gaslight2usd bench --suite chain``)."""
+    max_final_medians: float = 4.0
+    """...and larger than this many times the fit's median splat: only blobs that are
+    outliers in their own fit are cut (a coarse fit of a small set, every splat wide,
+    loses nothing; the chain bench's rooms: median 0.07-0.08 m, limit 0.34 m)."""
     min_improvement: float = 0.005
     """Relative held-out improvement under which a densification round counts as idle."""
     patience: int = 2
