@@ -39,21 +39,25 @@ def _gauss_kernel(device) -> torch.Tensor:
 
 
 def _blur(x: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
-    """Separable Gaussian blur of (C, 1, H, W), zero padding (as the 3DGS SSIM)."""
-    pad = SSIM_WINDOW // 2
-    x = F.conv2d(x, g.view(1, 1, 1, -1), padding=(0, pad))
-    return F.conv2d(x, g.view(1, 1, -1, 1), padding=(pad, 0))
+    """Separable Gaussian blur of each channel of (1, C, H, W), zero padding (as the
+    3DGS SSIM). One depthwise convolution per axis over all channels: the SSIM's five
+    blurred images of three channels each, as single-channel convolutions, took 2.3x as
+    long with their gradients at the fit's image sizes."""
+    pad, c = SSIM_WINDOW // 2, x.shape[1]
+    x = F.conv2d(x, g.view(1, 1, 1, -1).expand(c, 1, 1, -1), padding=(0, pad), groups=c)
+    return F.conv2d(x, g.view(1, 1, -1, 1).expand(c, 1, -1, 1), padding=(pad, 0), groups=c)
 
 
 def ssim(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Mean SSIM of two (H, W, 3) images (values expected in [0, 1])."""
     g = _gauss_kernel(a.device)
-    x = a.permute(2, 0, 1)[:, None]
-    y = b.permute(2, 0, 1)[:, None]
-    mx, my = _blur(x, g), _blur(y, g)
-    sxx = _blur(x * x, g) - mx * mx
-    syy = _blur(y * y, g) - my * my
-    sxy = _blur(x * y, g) - mx * my
+    x = a.permute(2, 0, 1)[None]
+    y = b.permute(2, 0, 1)[None]
+    blurred = _blur(torch.cat([x, y, x * x, y * y, x * y], dim=1), g)[0]
+    mx, my, bxx, byy, bxy = blurred.split(x.shape[1])
+    sxx = bxx - mx * mx
+    syy = byy - my * my
+    sxy = bxy - mx * my
     num = (2 * mx * my + SSIM_C1) * (2 * sxy + SSIM_C2)
     den = (mx * mx + my * my + SSIM_C1) * (sxx + syy + SSIM_C2)
     return (num / den).mean()
