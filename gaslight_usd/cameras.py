@@ -90,7 +90,7 @@ def latlong_directions(width: int, height: int) -> np.ndarray:
     lat = np.pi * (0.5 - (np.arange(height) + 0.5) / height)
     out = np.empty((height, width, 3), np.float64)
     # the sines and cosines of one row and one column, multiplied out (a 2048-wide
-    # panorama's 2M directions: 0.05 s, where trigonometry per pixel took 0.5)
+    # panorama's 2M directions in a third of the time trigonometry per pixel took)
     out[..., 0] = np.cos(lat)[:, None] * np.sin(lon)[None, :]
     out[..., 1] = np.sin(lat)[:, None]
     out[..., 2] = np.cos(lat)[:, None] * np.cos(lon)[None, :]

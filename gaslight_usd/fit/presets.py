@@ -45,8 +45,9 @@ class FitConfig:
     """Splats still larger than this fraction of the scene extent when training ends are
     cut (0: none). A fit leaves a few dozen blobs a metre wide, faint or wall-coloured,
     where few views look through them (in the middle of a room, behind the cameras):
-    harmless in the photos, but a probe inside one sees the room through it (the example's
-    lamp 0.3-1.1 stops short at its probes from true HDR views). Cutting them during
+    harmless in the photos, but a probe inside one sees the room through it (from true
+    HDR views the example's lamp was 0.2-0.9 stops short at its probes, its own splats
+    within 0.25 stops). Cutting them during
     training (``max_scale`` 0.2) changed every fit's course (``bulb``, ``panels`` lost
     lights); cut at the end they cost the held-out views what the fit's metrics
     ``oversized_cut`` report (``gaslight2usd bench --suite chain``)."""

@@ -276,8 +276,8 @@ class Trainer:
                        ) -> tuple[SplatScene, dict[str, Any]]:
         """Cut the fitted splats (not the last ``backdrop``) larger than ``max_final_scale``
         of the extent and ``max_final_medians`` of their median size (the docstrings say
-        why) and say what that cost the held-out views
-        (log-luminance RMSE, stops). After the lights are weighed: the weighing gathers
+        why) and say what that cost the held-out views (log-luminance RMSE, stops).
+        After the lights are weighed: the weighing gathers
         light with the splats as fitted (cut before it, the blobs' shade lifted off the
         walls moved a lamp's factor 1.4 stops on ``room:11``)."""
         fitted = scene.count - backdrop

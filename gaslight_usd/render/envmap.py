@@ -127,7 +127,7 @@ def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndar
     for cam in cams:
         R = np.asarray(cam.R, np.float64)
         # the view's axis first: only the directions within BLEND_DEG of it (an eighth
-        # of the sphere) are projected (a 2048-wide lookup took 5 s projecting all)
+        # of the sphere) are projected (a 2048-wide lookup 6x faster than projecting all)
         idx = np.flatnonzero(dirs @ R[2] > limit)
         local = dirs[idx] @ R.T
         z = local[:, 2]
