@@ -18,6 +18,7 @@ from gaslight_usd.fit.power import (
     gather_irradiance,
     infer_light_power,
     light_is_clipped,
+    light_sighting,
     scaled_sh,
     solve_factors,
 )
@@ -246,6 +247,17 @@ def test_a_lamp_some_photo_measured_is_not_weighed():
     assert light_is_clipped(light.position, cams, images, floors, Y709, white=1.0)
     floors[1] = None  # a darker frame: it saw the lamp unclipped, far over the white
     assert not light_is_clipped(light.position, cams, images, floors, Y709, white=1.0)
+
+
+def test_a_light_no_view_frames_is_unseen_not_clipped():
+    """A stray bright splat outside every training view: no photo says it clipped."""
+    scene, cams, images, floors, light, _, _ = _photos(16.0)
+    assert light_sighting(light.position, cams, images, floors, Y709, white=1.0) == "clipped"
+    behind = 2.0 * cams[0].center - light.position  # behind the first camera
+    assert cams[0].project(behind[None])[1][0] < 0
+    assert light_sighting(behind, [cams[0]], [images[0]], [floors[0]], Y709,
+                          white=1.0) == "unseen"
+    assert not light_is_clipped(behind, [cams[0]], [images[0]], [floors[0]], Y709, white=1.0)
 
 
 def test_scaled_sh_scales_the_radiance_not_the_offset_coefficients():

@@ -178,23 +178,38 @@ class LightPower:
                 "power_uncertainty_stops": round(self.uncertainty_stops, 3), **self.details}
 
 
-def light_is_clipped(position: np.ndarray, cameras: list[PinholeCamera],
-                     images: list[np.ndarray], floors: list[np.ndarray | None],
-                     weights: np.ndarray, white: float) -> bool:
-    """Whether no view measured the light at ``position`` over ``white``: every view that
-    frames it has clipped pixels there, or reads no more than white (a darker frame shot
-    for the light, or an auto-exposure that dropped, measured it)."""
+def light_sighting(position: np.ndarray, cameras: list[PinholeCamera],
+                   images: list[np.ndarray], floors: list[np.ndarray | None],
+                   weights: np.ndarray, white: float) -> str:
+    """How the training views saw the light at ``position``: ``"measured"`` where one
+    read it over ``white`` unclipped (a darker frame shot for the light, or an
+    auto-exposure that dropped), ``"clipped"`` where every view that frames it clipped
+    there or read no more than white, ``"unseen"`` where none frames it.
+
+    An unseen light is not weighed: nothing says its photos clipped, and a fit's stray
+    bright splat outside every view (``bulb``, seed 2: two splats by the floor, 3.7 m
+    from any emitter) was weighed 8 stops up to light the corner it sits in."""
+    framed = False
     for cam, img, floor in zip(cameras, images, floors, strict=True):
         uv, z = cam.project(np.asarray(position, np.float64)[None])
         h, w = img.shape[:2]
         x, y = int(uv[0, 0] * w / cam.width), int(uv[0, 1] * h / cam.height)
         if not (z[0] > 0 and 0 <= x < w and 0 <= y < h):
             continue
+        framed = True
         block = (slice(max(0, y - 1), y + 2), slice(max(0, x - 1), x + 2))
         clipped = floor is not None and bool((floor[block] > 0).any())
         if not clipped and float((img[block] @ weights).max()) > 2.0 * white:
-            return False
-    return True
+            return "measured"
+    return "clipped" if framed else "unseen"
+
+
+def light_is_clipped(position: np.ndarray, cameras: list[PinholeCamera],
+                     images: list[np.ndarray], floors: list[np.ndarray | None],
+                     weights: np.ndarray, white: float) -> bool:
+    """Whether views frame the light at ``position`` and none measured it over ``white``
+    (:func:`light_sighting`)."""
+    return light_sighting(position, cameras, images, floors, weights, white) == "clipped"
 
 
 def clipped_extent(position: np.ndarray, cameras: list[PinholeCamera],
@@ -599,9 +614,14 @@ def lights_to_weigh(scene: SplatScene, cameras: list[PinholeCamera], images: lis
     weigh, keep = [], []
     for light in search.lights:
         entry = LightPower(position=light.position, splats=light.splats, radius=light.radius)
-        if not light_is_clipped(light.position, cameras, images, floors, weights, white):
+        sighting = light_sighting(light.position, cameras, images, floors, weights, white)
+        if sighting == "measured":
             entry.source, entry.uncertainty_stops = "measured", 0.25
             entry.details["note"] = "a view measured it over the white"
+            keep.append(entry)
+        elif sighting == "unseen":
+            entry.details["note"] = ("no training view frames it, so none says it clipped: "
+                                     "not weighed; the uplift's power stands")
             keep.append(entry)
         elif not max(light.radius, clipped_extent(light.position, cameras, floors)) <= size:
             entry.details["note"] = (f"wider than {COMPACT_SHARE:g} of the room's depth, or "
