@@ -12,6 +12,7 @@ from conftest import needs_example
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
 from gaslight_usd.fit.power import (
+    ALBEDO_PRIOR_MEDIAN,
     LightPower,
     aimed_camera,
     clipped_extent,
@@ -21,6 +22,7 @@ from gaslight_usd.fit.power import (
     light_sighting,
     scaled_sh,
     solve_factors,
+    with_albedo_prior,
 )
 from gaslight_usd.render import render
 from gaslight_usd.splats import SplatScene
@@ -340,3 +342,41 @@ def test_two_lights_the_surfaces_tell_apart_keep_their_own_factors():
     radiance, bound, irr = _two_lights(lambda x: 0.02 * (x > 0.5) * x, 2.0, 5.0)
     k = solve_factors(radiance, bound, irr)
     assert abs(k[0] - 2.0) <= 0.5 and abs(k[1] - 5.0) <= 0.5
+
+
+def _one_light_everywhere_alike(k_true: float, median_albedo: float, seed: int = 0):
+    """300 matte points whose light from the lamp is the same share of their light
+    everywhere (a bare bulb amid the room): the albedos' uniformity cannot say ``k``."""
+    rng = np.random.default_rng(seed)
+    rest = rng.uniform(0.05, 0.4, 300)
+    irr = np.stack([rest, 0.02 * rest], axis=1)  # the lamp: 5/6 of it at k = 8
+    albedo = median_albedo * 2.0 ** rng.normal(0.0, 0.7, 300)
+    radiance = albedo * (irr[:, 0] + 2.0**k_true * irr[:, 1]) / math.pi
+    return radiance, np.full(300, np.nan), irr
+
+
+def test_the_albedos_level_decides_where_their_uniformity_cannot():
+    """The uniformity is flat along ``k`` here; a search on it lands anywhere and its
+    bootstrap runs to the search's ends (given as +13, 6 stops uncertain). The surfaces' median albedo (0.3, the prior's) pins the
+    lamp at its true +8."""
+    radiance, bound, irr = _one_light_everywhere_alike(8.0, ALBEDO_PRIOR_MEDIAN)
+    k, sigma = with_albedo_prior(np.array([13.0]), np.array([6.0]), radiance, bound, irr)
+    assert abs(k[0] - 8.0) <= 0.5
+    assert sigma[0] < 2.0  # the level narrowed it
+    darker = _one_light_everywhere_alike(8.0, ALBEDO_PRIOR_MEDIAN / 2.0)
+    k_dark, _ = with_albedo_prior(np.array([13.0]), np.array([6.0]), *darker)
+    # a room a stop darker than the prior's reads its lamp dimmer (the measured level
+    # moves it), by less than that stop over the lamp's share
+    assert 8.0 - 1.25 <= k_dark[0] <= k[0] - 0.5
+
+
+def test_a_sharp_uniformity_is_not_moved_by_the_albedos_level():
+    """Light surfaces (albedo 0.6-0.9, two stops over the prior's median) and a lamp whose
+    share falls off across them: the uniformity pins it, the prior barely pulls."""
+    radiance, bound, irr = _two_lights(lambda x: 0.0 * x, 5.0, 0.0)
+    radiance = radiance * 2.0  # albedos 0.4-1.0
+    irr = irr[:, :2]
+    k0 = solve_factors(radiance, bound, irr)
+    assert abs(k0[0] - 5.0) <= 0.5
+    k, sigma = with_albedo_prior(k0, np.array([0.2]), radiance, bound, irr)
+    assert abs(k[0] - k0[0]) <= 0.25 and sigma[0] <= 0.25

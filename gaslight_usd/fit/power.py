@@ -31,8 +31,18 @@ censored, trimmed of the 10 % worst measured points; with no bound, the least
 variance), subject to most albedos (three quarters) staying at or under 1. Where
 almost all the surfaces' light is this light's, the spread no longer depends on
 ``k`` and that cap decides: the factor is then a lower bound, and says so. The
-uncertainty (stops) is the spread of ``log2 k`` over bootstrap resamples of the
-points and :data:`SYSTEMATIC_STOPS` for what resampling cannot show.
+uniformity's uncertainty (stops) is the spread of ``log2 k`` over bootstrap resamples
+of the points and :data:`SYSTEMATIC_STOPS` for what resampling cannot show.
+
+Uniformity alone is weak where the light reaches every surface in much the same share
+(a bare bulb in the middle of a room: the lamp's share of the surfaces' light ran only
+0.5-0.7), and then it is biased as well: noise in the gathered irradiance from the rest
+of the room makes a brighter lamp, which drowns that noise, look more uniform (a
+regression-dilution effect; noise in the light's own irradiance pulls the other way).
+The albedos' *level* is the other half of what the surfaces say: a brighter lamp means
+darker surfaces, and rooms are not built of soot. So the uniformity's estimate is
+weighed with a prior on the surfaces' median albedo (:data:`ALBEDO_PRIOR_MEDIAN`,
+:func:`with_albedo_prior`); where the uniformity is sharp the prior hardly moves it.
 
 The estimate is fused with the uplift's fill (``k = 1``) as what the fill is for a
 clipped light: a lower bound, not a guess with errors both ways. The fit holds every
@@ -87,11 +97,13 @@ resamples of the surface points, and :data:`SYSTEMATIC_STOPS`) is no surer from 
 than from the fill: it keeps the uplift's fill. (At 1.5 stops the shaded lamp's weighing
 fell through on some fits, sigma 1.95-2.3 about +5.6 where +6.9 was needed, and its fill
 left it 5-7 stops short: ``docs/measurements.md``, session 19.)"""
-SYSTEMATIC_STOPS = 0.5
-"""Error of the inference that resampling the points does not show (the cube maps' coarse
-irradiance, the photos' blur across neighbouring albedos), added in quadrature to the
-bootstrap spread: on ``tests/test_light_power.py``'s floor, a lamp 4 stops short is
-inferred at 3.5 with a bootstrap spread of under 0.1."""
+SYSTEMATIC_STOPS = 1.0
+"""Error of the inference that resampling the points does not show (the gathered
+irradiance's sensitivity to how far off the surface it is taken, the fitted light's
+shape, the photos' blur across neighbouring albedos), added in quadrature to the
+bootstrap spread. Set so that the claimed uncertainty covers the errors measured on the
+chain bench's fits against each light's true power (at 0.5 they were 3x the claim in
+rms): ``docs/measurements.md``, session 21."""
 COMPACT_SHARE = 0.15
 """A light is weighed only when its radius, and that of the clipped region the photos saw
 it in (:func:`clipped_extent`), is at most this share of the captured space's median
@@ -127,6 +139,14 @@ short (``docs/measurements.md``, session 19)."""
 ALBEDO_QUANTILE = 0.75
 """This share of the sampled albedos must stay at or under 1 for a factor to be possible
 (a matte surface reflects at most what reaches it)."""
+ALBEDO_PRIOR_MEDIAN = 0.3
+ALBEDO_PRIOR_STOPS = 1.0
+"""What a room's surfaces reflect, before the photos say: a median albedo of 0.3, within
+a stop either way (interiors run from dark floors and wood near 0.1-0.2 to painted walls
+and ceilings near 0.5-0.8; 18 % is the photographer's average scene). It decides only
+where the albedos' uniformity cannot: a bare bulb that lights every surface alike leaves
+the uniformity flat over several stops, and its factor wandered 12.1-14.5 over sample
+draws where 10.8-11.0 was right (``docs/measurements.md``, session 21)."""
 ALIKE_TOLERANCE = 0.05
 """Lights weighed together get one factor (over their own fills) where that scores within
 this much (negative log-likelihood per point) of the best separate factors. Where the
@@ -470,6 +490,15 @@ def albedo_scores(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
     surfaces it lights brightest clip, the darker ones stay, and the factor that makes
     them look like the rest falls short (1.2 stops on a ``balanced`` fit of ``room:11``,
     ``docs/measurements.md``)."""
+    _, nll, over = albedo_fit(totals, radiance, bound, trim)
+    return np.where(over, np.inf, nll)
+
+
+def albedo_fit(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
+               trim: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per row of irradiance ``totals`` ``(G, P)``: the log2-albedos' fitted mean (their
+    level), the negative log-likelihood per point (:func:`albedo_scores`) and whether
+    over a quarter of the albedos exceed 1."""
     totals = np.maximum(np.atleast_2d(totals), 1e-12)
     known = np.isfinite(radiance)
     y = np.where(known, np.log2(math.pi * np.where(known, radiance, 1.0) / totals), np.nan)
@@ -480,8 +509,8 @@ def albedo_scores(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
     dev = np.abs(y - ref)
     keep = cens | (dev <= np.nanquantile(dev, 1.0 - trim, axis=1, keepdims=True))
     y, c = np.where(keep, y, np.nan), np.where(keep, c, np.nan)
-    nll = censored_fit(y, c)[2]
-    return np.where(over, np.inf, nll)
+    mu, _, nll = censored_fit(y, c)
+    return mu, nll, over
 
 
 def solve_factors(radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray,
@@ -513,6 +542,42 @@ def feasible(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray, irr: n
     """Whether factors ``2**log2_k`` keep the albedos under the cap (:func:`albedo_scores`)."""
     totals = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k)
     return bool(np.isfinite(albedo_scores(totals[None], radiance, bound))[0])
+
+
+def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarray,
+                      bound: np.ndarray, irr: np.ndarray, grid_step: float = 0.125
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The factors (log2) and their spread (stops) once the albedos' *level* is weighed
+    in beside their uniformity (module docstring): per light, the posterior over a grid
+    of ``log2 k`` of a normal around the uniformity's estimate ``log2_k`` (``sigma``)
+    and the prior that the surfaces' median albedo is near
+    :data:`ALBEDO_PRIOR_MEDIAN` (:data:`ALBEDO_PRIOR_STOPS`); factors that push over a
+    quarter of the albedos over 1 are impossible. Lights the uniformity weighed as one
+    (:data:`ALIKE_TOLERANCE`) stay one. Coordinate-wise for several lights."""
+    lights = len(log2_k)
+    grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
+    k, spread = log2_k.astype(np.float64).copy(), sigma.astype(np.float64).copy()
+    groups = ([np.arange(lights)] if lights > 1 and np.ptp(log2_k) == 0
+              else [np.array([j]) for j in range(lights)])
+    level = math.log2(ALBEDO_PRIOR_MEDIAN)
+    for _ in range(3 if len(groups) > 1 else 1):
+        for g in groups:
+            trial = np.repeat(k[None], len(grid), 0)
+            trial[:, g] = grid[:, None]
+            mu, _, over = albedo_fit(irr[:, 0][None] + (2.0 ** trial) @ irr[:, 1:].T,
+                                     radiance, bound)
+            centre, width = float(log2_k[g[0]]), float(sigma[g].max())
+            log_post = (-0.5 * ((grid - centre) / width) ** 2
+                        - 0.5 * ((mu - level) / ALBEDO_PRIOR_STOPS) ** 2)
+            log_post[over] = -np.inf
+            if not np.isfinite(log_post).any():
+                continue
+            weight = np.exp(log_post - log_post.max())
+            mean = float(np.sum(weight * grid) / weight.sum())
+            k[g] = grid[int(np.argmax(log_post))]
+            spread[g] = math.sqrt(max(float(np.sum(weight * (grid - mean) ** 2)
+                                            / weight.sum()), grid_step ** 2 / 12.0))
+    return k, spread
 
 
 def infer_light_power(scene: SplatScene, lights: list[LightPower],
@@ -569,13 +634,17 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
     # half the central 68 % of the resamples' factors: a few resamples that run off to the
     # search's ends inflate a standard deviation (docs/measurements.md, session 14)
     spread = np.diff(np.quantile(np.asarray(boots), [0.16, 0.84], axis=0), axis=0)[0] / 2.0
+    uniform, sigma_uniform = best, np.hypot(spread, SYSTEMATIC_STOPS)
+    best, sigmas = with_albedo_prior(uniform, sigma_uniform, radiance, bound, irr)
     out = scene.subset(np.arange(scene.count))
     for j, light in enumerate(lights):
-        sigma_inf = math.hypot(float(spread[j]), SYSTEMATIC_STOPS)
-        lower = best.copy()
+        sigma_inf = float(sigmas[j])
+        lower = uniform.copy()  # did the albedo cap, not their spread, decide?
         lower[j] -= 0.25
         light.details.update({"inferred_log2_factor": round(float(best[j]), 3),
                               "inferred_sigma_stops": round(sigma_inf, 3),
+                              "uniformity_log2_factor": round(float(uniform[j]), 3),
+                              "uniformity_sigma_stops": round(float(sigma_uniform[j]), 3),
                               "surface_points": int(np.isfinite(radiance).sum()),
                               "clipped_surface_points": int(np.isfinite(bound).sum()),
                               # the albedo cap, not the albedos' spread, decided: little
