@@ -357,8 +357,8 @@ def _one_light_everywhere_alike(k_true: float, median_albedo: float, seed: int =
 
 def test_the_albedos_level_decides_where_their_uniformity_cannot():
     """The uniformity is flat along ``k`` here; a search on it lands anywhere and its
-    bootstrap runs to the search's ends (given as +13, 6 stops uncertain). The surfaces' median albedo (0.3, the prior's) pins the
-    lamp at its true +8."""
+    bootstrap runs to the search's ends (given as +13, 6 stops uncertain). The surfaces'
+    median albedo (0.3, the prior's) pins the lamp at its true +8."""
     radiance, bound, irr = _one_light_everywhere_alike(8.0, ALBEDO_PRIOR_MEDIAN)
     k, sigma = with_albedo_prior(np.array([13.0]), np.array([6.0]), radiance, bound, irr)
     assert abs(k[0] - 8.0) <= 0.5
@@ -368,6 +368,13 @@ def test_the_albedos_level_decides_where_their_uniformity_cannot():
     # a room a stop darker than the prior's reads its lamp dimmer (the measured level
     # moves it), by less than that stop over the lamp's share
     assert 8.0 - 1.25 <= k_dark[0] <= k[0] - 0.5
+    # where the photos only bounded most points (clipped in every view) the level is not
+    # measured: the uniformity's estimate stands as it came
+    clipped = np.arange(300) % 5 != 0
+    bounded = np.where(clipped, radiance * 0.9, np.nan)
+    k_b, sigma_b = with_albedo_prior(np.array([13.0]), np.array([6.0]),
+                                     np.where(clipped, np.nan, radiance), bounded, irr)
+    assert k_b[0] == 13.0 and sigma_b[0] == 6.0
 
 
 def test_a_sharp_uniformity_is_not_moved_by_the_albedos_level():
