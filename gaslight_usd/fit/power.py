@@ -35,8 +35,8 @@ uniformity's uncertainty (stops) is the spread of ``log2 k`` over bootstrap resa
 of the points and :data:`SYSTEMATIC_STOPS` for what resampling cannot show.
 
 Uniformity alone is weak where the light reaches every surface in much the same share
-(a bare bulb in the middle of a room: the lamp's share of the surfaces' light ran only
-0.5-0.7), and then it is biased as well: noise in the gathered irradiance from the rest
+(a bare bulb in the middle of a room gives every surface much the same share of its
+light), and then it is biased as well: noise in the gathered irradiance from the rest
 of the room makes a brighter lamp, which drowns that noise, look more uniform (a
 regression-dilution effect; noise in the light's own irradiance pulls the other way).
 The albedos' *level* is the other half of what the surfaces say: a brighter lamp means
@@ -102,8 +102,8 @@ SYSTEMATIC_STOPS = 1.0
 irradiance's sensitivity to how far off the surface it is taken, the fitted light's
 shape, the photos' blur across neighbouring albedos), added in quadrature to the
 bootstrap spread. Set so that the claimed uncertainty covers the errors measured on the
-chain bench's fits against each light's true power (at 0.5 they were 3x the claim in
-rms): ``docs/measurements.md``, session 21."""
+chain bench's fits against each light's true power (``gaslight2usd bench --suite
+chain``; ``docs/measurements.md``, session 21)."""
 COMPACT_SHARE = 0.15
 """A light is weighed only when its radius, and that of the clipped region the photos saw
 it in (:func:`clipped_extent`), is at most this share of the captured space's median
@@ -140,19 +140,20 @@ ALBEDO_QUANTILE = 0.75
 """This share of the sampled albedos must stay at or under 1 for a factor to be possible
 (a matte surface reflects at most what reaches it)."""
 ALBEDO_PRIOR_MEDIAN = 0.3
+"""What a room's surfaces reflect, before the photos say: a median albedo of 0.3
+(interiors run from dark floors and wood near 0.1-0.2 to painted walls and ceilings near
+0.5-0.8; 18 % is the photographer's average scene). It decides only where the albedos'
+uniformity cannot: a bare bulb that lights every surface alike leaves the uniformity
+flat over several stops, and its factor wandered with each draw of surface points
+(``docs/measurements.md``, session 21)."""
 ALBEDO_PRIOR_STOPS = 1.0
-"""What a room's surfaces reflect, before the photos say: a median albedo of 0.3, within
-a stop either way (interiors run from dark floors and wood near 0.1-0.2 to painted walls
-and ceilings near 0.5-0.8; 18 % is the photographer's average scene). It decides only
-where the albedos' uniformity cannot: a bare bulb that lights every surface alike leaves
-the uniformity flat over several stops, and its factor wandered 12.1-14.5 over sample
-draws where 10.8-11.0 was right (``docs/measurements.md``, session 21)."""
+"""...within this many stops either way (1 sigma)."""
 LEVEL_MEASURED_SHARE = 0.5
 """The albedos' level is weighed in only where the photos measured at least this share of
 the surface points (the rest are bounds: clipped in every view). Around a shaded lamp
-the photos clipped 80 % of them; the level a censored fit puts on the rest read 0.8-1.3
-at the true factor, and the prior pulled an accurate uniformity (-0.1 stops) 2.5 stops
-over (``docs/measurements.md``, session 21)."""
+the photos clip most of them; the level a censored fit puts on the rest is then an
+extrapolation, and on a held-out room it pulled an accurate uniformity stops over
+(``docs/measurements.md``, session 21)."""
 ALIKE_TOLERANCE = 0.05
 """Lights weighed together get one factor (over their own fills) where that scores within
 this much (negative log-likelihood per point) of the best separate factors. Where the
@@ -213,8 +214,8 @@ def light_sighting(position: np.ndarray, cameras: list[PinholeCamera],
     there or read no more than white, ``"unseen"`` where none frames it.
 
     An unseen light is not weighed: nothing says its photos clipped, and a fit's stray
-    bright splat outside every view (``bulb``, seed 2: two splats by the floor, 3.7 m
-    from any emitter) was weighed 8 stops up to light the corner it sits in."""
+    bright splats outside every view, far from any emitter, were weighed many stops up
+    to light the corner they sit in (``docs/measurements.md``, session 21)."""
     framed = False
     for cam, img, floor in zip(cameras, images, floors, strict=True):
         uv, z = cam.project(np.asarray(position, np.float64)[None])
