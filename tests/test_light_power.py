@@ -20,6 +20,7 @@ from gaslight_usd.fit.power import (
     infer_light_power,
     light_is_clipped,
     light_sighting,
+    measured_radiance,
     scaled_sh,
     solve_factors,
     with_albedo_prior,
@@ -54,6 +55,39 @@ def test_light_irradiance_matches_a_gaussian_emitter():
     expected = r * a * 2 * math.pi * s * s / (d - 1e-3) ** 2
     assert irr[0, 0] == 0.0
     assert abs(irr[0, 1] / expected - 1) < 0.05
+
+
+def test_a_cluster_of_tiny_opaque_splats_keeps_its_power_in_the_aimed_view(monkeypatch):
+    """A bulb fitted as hundreds of ~1 mm splats: drawn coarsely, each is widened to a
+    pixel, the cluster turns translucent and the splats behind shine through. A faint halo
+    of large splats (as fits grow round a bulb) widens the view aimed at it. That view is
+    sized to the light's splats (``light_view_size``), so its irradiance is what a
+    1024-pixel view gives, where 24 pixels overstate it."""
+    from gaslight_usd.fit import power
+
+    rng = np.random.default_rng(0)
+    n = 400
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    pos = dirs * 0.02 * rng.uniform(0, 1, (n, 1)) ** (1 / 3) + np.array([0.0, 1.5, 0.0])
+    halo = np.array([0.0, 1.5, 0.0]) + 0.08 * np.vstack([np.eye(3), -np.eye(3)])
+    bulb = SplatScene.from_activated(
+        np.vstack([pos, halo]), np.vstack([np.full((n, 3), 100.0), np.full((6, 3), 0.5)]),
+        np.vstack([np.full((n, 3), 0.002), np.full((6, 3), 0.04)]),
+        np.concatenate([np.full(n, 0.99), np.full(6, 0.3)]), metadata={"antialiased": True})
+    n += 6
+
+    def gathered(least: int, most: int) -> float:
+        monkeypatch.setattr(power, "LIGHT_VIEW_SIZE", least)
+        monkeypatch.setattr(power, "MAX_LIGHT_VIEW_SIZE", most)
+        return float(gather_irradiance(bulb, [np.arange(n)], np.zeros((1, 3)),
+                                       np.array([[0.0, 1.0, 0.0]]), np.array([1e-3]),
+                                       Y709)[0, 1])
+
+    fine, coarse = gathered(1024, 1024), gathered(24, 24)
+    default = gathered(24, 192)
+    assert coarse > 1.15 * fine
+    assert abs(default / fine - 1) < 0.05
 
 
 def _room(k_true: float, seed: int = 0):
@@ -177,6 +211,28 @@ def test_at_most_the_gathered_points_are_weighed_and_all_of_few(monkeypatch):
     _, _, light = _weigh(16.0)
     assert 100 <= used(light) <= 150 < power.GATHERED_POINTS
     assert abs(light.details["inferred_log2_factor"] - 4.0) <= 0.75
+
+
+def test_a_point_only_one_view_sees_is_neither_measured_nor_bounded(monkeypatch):
+    """One view cannot place a point (a floater in front of a wall reads as the wall behind
+    it): with fewer than MIN_VIEWS views seeing it, a point says nothing."""
+    from gaslight_usd.fit import power
+
+    scene, cams, images, floors, _, _, _ = _photos(16.0)
+    points = scene.positions[:1024:7].astype(np.float64)
+    normals = np.tile([0.0, 1.0, 0.0], (len(points), 1))
+    both = measured_radiance(scene, points, normals, cams, images, floors, Y709)
+    alone = measured_radiance(scene, points, normals, cams[:1], images[:1], floors[:1], Y709)
+    assert np.isfinite(both[0]).sum() > 0.5 * len(points)
+    assert not np.isfinite(alone[0]).any() and not np.isfinite(alone[1]).any()
+    monkeypatch.setattr(power, "MIN_VIEWS", 1)
+    trusted = measured_radiance(scene, points, normals, cams[:1], images[:1], floors[:1],
+                                Y709)[0]
+    agree = np.isfinite(trusted) & np.isfinite(both[0])
+    assert agree.sum() > 0.3 * len(points)
+    # a matte floor reads alike from every view (each 3x3 block blurs its texture a little
+    # differently)
+    assert abs(np.median(np.log2(trusted[agree] / both[0][agree]))) < 0.05
 
 
 def test_the_photos_not_the_splats_colours_say_what_the_surfaces_reflect():

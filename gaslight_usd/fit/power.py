@@ -18,7 +18,9 @@ overlap, and any one of them may be far brighter or darker than the surface the
 composite shows (on the example's ``fast`` fit, neighbouring ceiling splats read
 0.01 and 0.4). Each sample is looked up in the training views that see it face on
 and unoccluded (the fit's depth there agrees with the sample's), on pixels no
-photo clipped; the median over those views is ``L_s``. A point every such view clipped
+photo clipped; the median over those views is ``L_s``. A point fewer than
+:data:`MIN_VIEWS` views see is not used: one view cannot tell a surface from a floater
+in front of it. A point every such view clipped
 is kept as a bound (``L_s`` at least its clip floors): near a clipped lamp the photos
 clip the surfaces it lights most, and leaving those out keeps the darker ones, whose
 albedos look even at too low a factor.
@@ -110,6 +112,15 @@ it in (:func:`clipped_extent`), is at most this share of the captured space's me
 depth (a bulb, a shade, a 0.4 m panel in a 2.5 m room; not a window)."""
 CUBE_SIZE = 12
 LIGHT_VIEW_SIZE = 24
+"""The least size (pixels across) of the view aimed at a light (:func:`light_view_size`)."""
+MAX_LIGHT_VIEW_SIZE = 192
+LIGHT_PIXELS_PER_GRAIN = 3.0
+"""How many pixels a light's typical splat (its median largest scale) spans at least in
+the view aimed at it. Coarser, a cluster of tiny nearly opaque splats turns translucent
+(even in the antialiased mode each splat is widened to about a pixel and its opacity
+cut), the splats behind shine through and the light gains power: the ``balanced``
+bulb's 1 cm splats drawn at 24 pixels across gave its surfaces 1.4x the irradiance they
+converge to at 192 (``docs/measurements.md``, session 22)."""
 POINTS_PER_BATCH = 64
 """Surface points whose cube maps are drawn in one pass (:mod:`gaslight_usd.render.many`)."""
 SAMPLE_POINTS = 1000
@@ -120,8 +131,11 @@ irradiance costs a cube map and an aimed view each); where fewer qualify (a room
 photos clip or see few flat surfaces) all are used. Drawing a fixed 400 candidates
 left the shaded-lamp room 55-61 usable points and its factor's spread over the 1.5-stop
 limit in one draw of four (``docs/measurements.md``, session 17)."""
-NEIGHBOURS = 16
-"""Opaque splats a sample's normal is fitted to (the smallest principal axis)."""
+NEIGHBOURS = 32
+"""Opaque splats a sample's normal is fitted to (the smallest principal axis). 16 was too
+few on a ``balanced`` fit, whose splats are small: the neighbourhood spans less than the
+fit's scatter off the wall, and one sample in ten on the room's shell leaned over 33
+degrees off its wall (10 % of cosines under 0.84; 0.89 with 32 neighbours)."""
 FLATNESS = 0.3
 """A sample's neighbourhood is a surface when its smallest principal variance is at most
 this share of the middle one."""
@@ -130,6 +144,13 @@ DEPTH_AGREEMENT = 0.05
 sample's own depth (nothing in front of it)."""
 FACING = 0.3
 """...and looks at it no more obliquely than this cosine."""
+MIN_VIEWS = 2
+"""A sample is weighed only where at least this many training views see it (measured or
+clipped). A point only one view sees has no second view to place it: on the bench's fits
+most such points were floaters off the room's shell (a ``balanced`` fit of ``bulb``: 99
+of its 146 one-view points lay over 0.15 m outside the room, 39 of the other 374), and
+their irradiance, gathered at the wrong place, misleads the weighing
+(``docs/measurements.md``, session 22)."""
 MAX_LIGHTS = 6
 LOG2_K_RANGE = (-2.0, 16.0)
 """The factors searched (log2 over the fill). A bare bulb can be 15 stops over the
@@ -320,8 +341,8 @@ def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray
     where no pixel of the block clipped (a measurement), else a bound on that mean (its
     clipped pixels at their clip floors, the rest as measured). The measurement is the
     median over the views that measured the point; the bound, for points no view
-    measured, the median of the views' bounds. NaN where no view qualifies (or, for the
-    bound, where a view measured the point)."""
+    measured, the median of the views' bounds. NaN where fewer than :data:`MIN_VIEWS`
+    views qualify (or, for the bound, where a view measured the point)."""
     readings = np.full((len(cameras), len(points)), np.nan)
     bounds = np.full((len(cameras), len(points)), np.nan)
     for v, (cam, img, floor) in enumerate(zip(cameras, images, floors, strict=True)):
@@ -347,6 +368,9 @@ def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray
             measured = ok & ~clipped
         block_mean = ndimage.uniform_filter(lum, size=3)
         readings[v, measured] = block_mean[y[measured], x[measured]]
+    placed = (np.isfinite(readings) | np.isfinite(bounds)).sum(axis=0) >= MIN_VIEWS
+    readings[:, ~placed] = np.nan
+    bounds[:, ~placed] = np.nan
     out = np.full(len(points), np.nan)
     seen = np.isfinite(readings).any(axis=0)
     out[seen] = np.nanmedian(readings[:, seen], axis=0)
@@ -379,6 +403,17 @@ def aimed_camera(position: np.ndarray, target: np.ndarray, half_angle: float, si
     rot = np.stack([right, np.cross(fwd, right), fwd])
     f = (size / 2.0) / math.tan(half_angle)
     return PinholeCamera(size, size, f, f, size / 2.0, size / 2.0, rot, -rot @ position)
+
+
+def light_view_size(half_angles: np.ndarray, distances: np.ndarray, grain: float) -> int:
+    """Pixels across the views aimed at a light from ``distances`` with ``half_angles``,
+    so that its typical splat (``grain`` across, scene units) spans
+    :data:`LIGHT_PIXELS_PER_GRAIN` pixels in each, within [:data:`LIGHT_VIEW_SIZE`,
+    :data:`MAX_LIGHT_VIEW_SIZE`]."""
+    if len(distances) == 0 or grain <= 0:
+        return LIGHT_VIEW_SIZE
+    needed = 2.0 * np.tan(half_angles) * distances * LIGHT_PIXELS_PER_GRAIN / grain
+    return int(np.clip(math.ceil(float(needed.max())), LIGHT_VIEW_SIZE, MAX_LIGHT_VIEW_SIZE))
 
 
 def channel_scene(scene: SplatScene, channels: np.ndarray) -> SplatParams:
@@ -416,6 +451,7 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
     centres = [scene.positions[g].astype(np.float64).mean(0) for g in groups]
     radii = [float(np.linalg.norm(scene.positions[g] - c, axis=1).max()
                    + 3.0 * scene.scales[g].max()) for g, c in zip(groups, centres, strict=True)]
+    grains = [float(np.median(scene.scales[g].max(1))) for g in groups]
     cube_dirs, cube_omega = pixel_directions(cube_face_cameras(np.zeros(3), CUBE_SIZE))
     cube_dirs, cube_omega = cube_dirs.reshape(-1, 3), cube_omega.ravel()
     out = np.full((len(points), 1 + len(groups)), np.nan)
@@ -428,11 +464,13 @@ def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.nd
         cubes = cubes[..., 0].reshape(-1, 6 * CUBE_SIZE * CUBE_SIZE)
         cosine = np.clip(normals[part] @ cube_dirs.T, 0, None)
         out[part, 0] = np.sum(cosine * cube_omega * cubes, axis=1)
-    for j, (c, r) in enumerate(zip(centres, radii, strict=True)):
+    for j, (c, r, grain) in enumerate(zip(centres, radii, grains, strict=True)):
         dist = np.linalg.norm(c - eyes, axis=1)
         aimed = np.flatnonzero(dist >= 2.0 * r)
-        cams = [aimed_camera(eyes[p], c, math.asin(min(0.99, r / dist[p])) * 1.2,
-                             LIGHT_VIEW_SIZE) for p in aimed]
+        halves = np.arcsin(np.minimum(0.99, r / dist[aimed])) * 1.2
+        size = light_view_size(halves, dist[aimed], grain)
+        cams = [aimed_camera(eyes[p], c, float(h), size)
+                for p, h in zip(aimed, halves, strict=True)]
         params = rest if j < 2 else extra[(j - 2) // 3]
         channel = 1 + j if j < 2 else (j - 2) % 3
         if not cams:
