@@ -58,7 +58,7 @@ def test_light_irradiance_matches_a_gaussian_emitter():
 
 
 def test_a_cluster_of_tiny_opaque_splats_keeps_its_power_in_the_aimed_view(monkeypatch):
-    """A bulb fitted as hundreds of ~1 mm splats: drawn coarsely, each is widened to a
+    """A bulb fitted as hundreds of 2 mm splats: drawn coarsely, each is widened to a
     pixel, the cluster turns translucent and the splats behind shine through. A faint halo
     of large splats (as fits grow round a bulb) widens the view aimed at it. That view is
     sized to the light's splats (``light_view_size``), so its irradiance is what a
