@@ -16,6 +16,7 @@ from gaslight_usd.fit.power import (
     LightPower,
     aimed_camera,
     clipped_extent,
+    evenness_floor,
     gather_irradiance,
     infer_light_power,
     light_is_clipped,
@@ -443,3 +444,38 @@ def test_a_sharp_uniformity_is_not_moved_by_the_albedos_level():
     assert abs(k0[0] - 5.0) <= 0.5
     k, sigma = with_albedo_prior(k0, np.array([0.2]), radiance, bound, irr)
     assert abs(k[0] - k0[0]) <= 0.25 and sigma[0] <= 0.25
+
+
+def _level_room(seed: int = 0):
+    """300 points: the lamp's fitted irradiance, the rest of the room's, albedos around 0.3
+    (half a stop), the lamp 2^10 over its fill."""
+    rng = np.random.default_rng(seed)
+    n = 300
+    lamp = rng.uniform(0.5, 2.0, n) * 1e-3
+    rest = rng.uniform(0.8, 1.2, n)
+    albedo = ALBEDO_PRIOR_MEDIAN * 2 ** rng.normal(0, 0.5, n)
+    radiance = albedo / math.pi * (rest + 2 ** 10 * lamp)
+    return radiance, np.full(n, np.nan), np.stack([rest, lamp], 1), rng
+
+
+def test_an_evenness_that_runs_off_the_search_is_a_floor_not_a_centre():
+    """Where the albedos only grow more even the brighter the light, up to the search's
+    end, their evenness says "at least this", not "this": the level decides above that
+    floor, and the search's end no longer pulls the factor up."""
+    radiance, bound, irr, rng = _level_room()
+    interior = solve_factors(radiance, bound, irr)
+    assert abs(interior[0] - 10.0) <= 0.5
+    assert np.isnan(evenness_floor(interior, radiance, bound, irr)[0])  # a centre, no floor
+    ran_off, sigma = np.array([16.0]), np.array([1.0])
+    as_centre = with_albedo_prior(ran_off, sigma, radiance, bound, irr)[0][0]
+    below = with_albedo_prior(ran_off, sigma, radiance, bound, irr, at_least=np.array([9.0]))
+    above = with_albedo_prior(ran_off, sigma, radiance, bound, irr, at_least=np.array([12.0]))
+    assert as_centre > 13.0  # dragged towards the search's end
+    assert abs(below[0][0] - 10.0) <= 0.5  # the level decides above the floor
+    assert 11.0 <= above[0][0] <= 12.0  # a floor over the truth still holds it up, softly
+    # noise in the rest of the room's gathered irradiance (2 stops) makes it run off
+    noisy = irr.copy()
+    noisy[:, 0] *= 2 ** rng.normal(0, 2.0, len(noisy))
+    best = solve_factors(radiance, bound, noisy)
+    floor = evenness_floor(best, radiance, bound, noisy)
+    assert best[0] == 16.0 and 10.0 < floor[0] < 16.0

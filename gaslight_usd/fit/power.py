@@ -589,8 +589,33 @@ def feasible(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray, irr: n
     return bool(np.isfinite(albedo_scores(totals[None], radiance, bound))[0])
 
 
+def evenness_floor(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
+                   irr: np.ndarray, grid_step: float = 0.125) -> np.ndarray:
+    """Per light, where the uniformity's best factor ``log2_k`` is the search's top: the
+    least factor that scores within :data:`ALIKE_TOLERANCE` of it, the others held at
+    theirs (NaN for the other lights).
+
+    A uniformity that keeps improving to the end of the search says "a light at least
+    this bright", not a centre: there the rest of the room's gathered irradiance adds
+    spread instead of explaining it, and the brighter the light the more it drowns that
+    spread (``bulb`` seed 0: the negative log-likelihood per point -0.064 at the true
+    2^10.84, -0.121 at 2^16). Taken as a centre at 2^16 it pulled the level's posterior
+    to 2^12.75 (``docs/measurements.md``, session 22)."""
+    grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
+    out = np.full(len(log2_k), np.nan)
+    for j in np.flatnonzero(log2_k >= LOG2_K_RANGE[1] - 1e-9):
+        others = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k) - irr[:, 1 + j] * 2.0 ** log2_k[j]
+        scores = albedo_scores(others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j],
+                               radiance, bound)
+        if np.isfinite(scores).any():
+            out[j] = grid[int(np.argmax(scores <= np.nanmin(np.where(
+                np.isfinite(scores), scores, np.nan)) + ALIKE_TOLERANCE))]
+    return out
+
+
 def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarray,
-                      bound: np.ndarray, irr: np.ndarray, grid_step: float = 0.125
+                      bound: np.ndarray, irr: np.ndarray, grid_step: float = 0.125,
+                      at_least: np.ndarray | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
     """The factors (log2) and their spread (stops) once the albedos' *level* is weighed
     in beside their uniformity (module docstring): per light, the posterior over a grid
@@ -600,8 +625,13 @@ def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarra
     quarter of the albedos over 1 are impossible. Lights the uniformity weighed as one
     (:data:`ALIKE_TOLERANCE`) stay one. Coordinate-wise for several lights. Where the
     photos only bounded most of the points (:data:`LEVEL_MEASURED_SHARE`) the level is
-    not measured and the uniformity's estimate is returned as it is."""
+    not measured and the uniformity's estimate is returned as it is.
+
+    ``at_least``: per light, where the uniformity ran off the search's top
+    (:func:`evenness_floor`; NaN elsewhere): there it only says "at least this", and
+    only factors under it are penalised (with ``sigma``)."""
     lights = len(log2_k)
+    floors = np.full(lights, np.nan) if at_least is None else np.asarray(at_least, float)
     grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
     k, spread = log2_k.astype(np.float64).copy(), sigma.astype(np.float64).copy()
     measured = int(np.isfinite(radiance).sum())
@@ -617,7 +647,9 @@ def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarra
             mu, _, over = albedo_fit(irr[:, 0][None] + (2.0 ** trial) @ irr[:, 1:].T,
                                      radiance, bound)
             centre, width = float(log2_k[g[0]]), float(sigma[g].max())
-            log_post = (-0.5 * ((grid - centre) / width) ** 2
+            off = (grid - centre if not np.isfinite(floors[g]).any()
+                   else np.minimum(grid - float(np.nanmax(floors[g])), 0.0))
+            log_post = (-0.5 * (off / width) ** 2
                         - 0.5 * ((mu - level) / ALBEDO_PRIOR_STOPS) ** 2)
             log_post[over] = -np.inf
             if not np.isfinite(log_post).any():
@@ -685,7 +717,9 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
     # search's ends inflate a standard deviation (docs/measurements.md, session 14)
     spread = np.diff(np.quantile(np.asarray(boots), [0.16, 0.84], axis=0), axis=0)[0] / 2.0
     uniform, sigma_uniform = best, np.hypot(spread, SYSTEMATIC_STOPS)
-    best, sigmas = with_albedo_prior(uniform, sigma_uniform, radiance, bound, irr)
+    at_least = evenness_floor(uniform, radiance, bound, irr)
+    best, sigmas = with_albedo_prior(uniform, sigma_uniform, radiance, bound, irr,
+                                     at_least=at_least)
     out = scene.subset(np.arange(scene.count))
     for j, light in enumerate(lights):
         sigma_inf = float(sigmas[j])
@@ -695,6 +729,7 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                               "inferred_sigma_stops": round(sigma_inf, 3),
                               "uniformity_log2_factor": round(float(uniform[j]), 3),
                               "uniformity_sigma_stops": round(float(sigma_uniform[j]), 3),
+                              "uniformity_ran_off": bool(np.isfinite(at_least[j])),
                               "surface_points": int(np.isfinite(radiance).sum()),
                               "clipped_surface_points": int(np.isfinite(bound).sum()),
                               # the albedo cap, not the albedos' spread, decided: little
