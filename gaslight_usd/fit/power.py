@@ -607,9 +607,9 @@ def evenness_floor(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
         others = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k) - irr[:, 1 + j] * 2.0 ** log2_k[j]
         scores = albedo_scores(others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j],
                                radiance, bound)
-        if np.isfinite(scores).any():
-            out[j] = grid[int(np.argmax(scores <= np.nanmin(np.where(
-                np.isfinite(scores), scores, np.nan)) + ALIKE_TOLERANCE))]
+        finite = np.isfinite(scores)
+        if finite.any():
+            out[j] = grid[int(np.argmax(scores <= scores[finite].min() + ALIKE_TOLERANCE))]
     return out
 
 
