@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from conftest import write_posed_views
 
 from gaslight_usd.cli.main import main
@@ -45,10 +46,14 @@ def interrupt_when(path: Path, timeout: float = 600) -> threading.Thread:
 @pytest.fixture
 def ctrl_c_raises():
     """Python's own SIGINT handler, even where the test runner was started with SIGINT
-    ignored (a background job): Ctrl-C then raises KeyboardInterrupt, as for a user."""
+    ignored (a background job): Ctrl-C then raises KeyboardInterrupt, as for a user.
+    torch's grad mode is restored too: an interrupt that lands inside a ``no_grad``
+    block's entry leaves it off for the rest of the process."""
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    grad = torch.is_grad_enabled()
     yield
     signal.signal(signal.SIGINT, previous)
+    torch.set_grad_enabled(grad)
 
 
 @pytest.mark.slow
@@ -134,3 +139,13 @@ def test_a_view_with_no_pose_is_left_out_and_named(posed_views, tmp_path, capsys
     meta = read_ply(out / "splats.ply").metadata
     assert meta["provenance"]["left_out_views"] == ["zz_noise"]
     assert "zz_noise" not in meta["provenance"]["views"]
+
+
+def test_a_fit_called_with_gradients_off_still_trains(posed_views, tmp_path):
+    """An API caller inside ``torch.no_grad()`` (or after a Ctrl-C that left grad mode
+    off) gets a fit, not "element 0 of tensors does not require grad"."""
+    out = tmp_path / "out"
+    with torch.no_grad():
+        assert main(["run", str(posed_views / "hdr"), str(posed_views / "sparse"), "-o",
+                     str(out), "--to", "splats"]) == 0
+    assert read_ply(out / "splats.ply").count > 0

@@ -627,6 +627,9 @@ def fit_splats(data: FitData, config: FitConfig, seed: int = 0,
     before = torch.get_num_threads()
     torch.set_num_threads(threads or max(1, (os.cpu_count() or 2) - 1))
     try:
-        return Trainer(data, config, seed, progress, checkpoint, dev).run(resume=resume)
+        # whatever the caller's grad mode (a torch.no_grad block, or one a Ctrl-C cut
+        # short, which leaves it off), the fit needs its gradients
+        with torch.enable_grad():
+            return Trainer(data, config, seed, progress, checkpoint, dev).run(resume=resume)
     finally:
         torch.set_num_threads(before)
