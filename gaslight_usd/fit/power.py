@@ -118,9 +118,9 @@ LIGHT_PIXELS_PER_GRAIN = 3.0
 """How many pixels a light's typical splat (its median largest scale) spans at least in
 the view aimed at it. Coarser, a cluster of tiny nearly opaque splats turns translucent
 (even in the antialiased mode each splat is widened to about a pixel and its opacity
-cut), the splats behind shine through and the light gains power: the ``balanced``
-bulb's 1 cm splats drawn at 24 pixels across gave its surfaces 1.4x the irradiance they
-converge to at 192 (``docs/measurements.md``, session 22)."""
+cut), the splats behind shine through and the light gains power, and its factor comes
+out low (a ``balanced`` fit's small bulb splats at a fixed 24 pixels:
+``docs/measurements.md``, session 22)."""
 POINTS_PER_BATCH = 64
 """Surface points whose cube maps are drawn in one pass (:mod:`gaslight_usd.render.many`)."""
 SAMPLE_POINTS = 1000
@@ -134,8 +134,8 @@ limit in one draw of four (``docs/measurements.md``, session 17)."""
 NEIGHBOURS = 32
 """Opaque splats a sample's normal is fitted to (the smallest principal axis). 16 was too
 few on a ``balanced`` fit, whose splats are small: the neighbourhood spans less than the
-fit's scatter off the wall, and one sample in ten on the room's shell leaned over 33
-degrees off its wall (10 % of cosines under 0.84; 0.89 with 32 neighbours)."""
+fit's scatter off the wall, and the samples' normals leaned off their walls
+(``docs/measurements.md``, session 22)."""
 FLATNESS = 0.3
 """A sample's neighbourhood is a surface when its smallest principal variance is at most
 this share of the middle one."""
@@ -146,11 +146,10 @@ FACING = 0.3
 """...and looks at it no more obliquely than this cosine."""
 MIN_VIEWS = 2
 """A sample is weighed only where at least this many training views see it (measured or
-clipped). A point only one view sees has no second view to place it: on the bench's fits
-most such points were floaters off the room's shell (a ``balanced`` fit of ``bulb``: 99
-of its 146 one-view points lay over 0.15 m outside the room, 39 of the other 374), and
-their irradiance, gathered at the wrong place, misleads the weighing
-(``docs/measurements.md``, session 22)."""
+clipped). A point only one view sees has no second view to place it: on the chain
+bench's fits most such points were floaters off the room's shell, and their irradiance,
+gathered at the wrong place, misleads the weighing (``docs/measurements.md``, session
+22)."""
 MAX_LIGHTS = 6
 LOG2_K_RANGE = (-2.0, 16.0)
 """The factors searched (log2 over the fill). A bare bulb can be 15 stops over the
@@ -558,6 +557,18 @@ def albedo_fit(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
     return mu, nll, over
 
 
+def factor_grid(step: float) -> np.ndarray:
+    """The ``log2 k`` searched: :data:`LOG2_K_RANGE`, ``step`` apart."""
+    return np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, step)
+
+
+def totals_over(irr: np.ndarray, log2_k: np.ndarray, j: int, grid: np.ndarray) -> np.ndarray:
+    """``(G, P)`` irradiance at each point with light ``j`` at each factor of ``grid``
+    (log2) and the other lights at ``log2_k``."""
+    others = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k) - irr[:, 1 + j] * 2.0 ** log2_k[j]
+    return others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j]
+
+
 def solve_factors(radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray,
                   grid_step: float = 0.125) -> np.ndarray:
     """``log2 k`` per light minimising :func:`albedo_scores` (coordinate grid search);
@@ -565,12 +576,10 @@ def solve_factors(radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray,
     :data:`ALIKE_TOLERANCE` of that."""
     lights = irr.shape[1] - 1
     k = np.zeros(lights)
-    grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
+    grid = factor_grid(grid_step)
     for _ in range(3 if lights > 1 else 1):
         for j in range(lights):
-            others = irr[:, 0] + irr[:, 1:] @ (2.0 ** k) - irr[:, 1 + j] * 2.0 ** k[j]
-            totals = others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j]
-            scores = albedo_scores(totals, radiance, bound)
+            scores = albedo_scores(totals_over(irr, k, j, grid), radiance, bound)
             if np.isfinite(scores).any():
                 k[j] = grid[int(np.argmin(scores))]
     if lights > 1:
@@ -598,15 +607,12 @@ def evenness_floor(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
     A uniformity that keeps improving to the end of the search says "a light at least
     this bright", not a centre: there the rest of the room's gathered irradiance adds
     spread instead of explaining it, and the brighter the light the more it drowns that
-    spread (``bulb`` seed 0: the negative log-likelihood per point -0.064 at the true
-    2^10.84, -0.121 at 2^16). Taken as a centre at 2^16 it pulled the level's posterior
-    to 2^12.75 (``docs/measurements.md``, session 22)."""
-    grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
+    spread. Taken as a centre at the search's top it pulled the level's posterior stops
+    over (``bulb`` seed 0 on the chain bench; ``docs/measurements.md``, session 22)."""
+    grid = factor_grid(grid_step)
     out = np.full(len(log2_k), np.nan)
     for j in np.flatnonzero(log2_k >= LOG2_K_RANGE[1] - 1e-9):
-        others = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k) - irr[:, 1 + j] * 2.0 ** log2_k[j]
-        scores = albedo_scores(others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j],
-                               radiance, bound)
+        scores = albedo_scores(totals_over(irr, log2_k, j, grid), radiance, bound)
         finite = np.isfinite(scores)
         if finite.any():
             out[j] = grid[int(np.argmax(scores <= scores[finite].min() + ALIKE_TOLERANCE))]
@@ -632,7 +638,7 @@ def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarra
     only factors under it are penalised (with ``sigma``)."""
     lights = len(log2_k)
     floors = np.full(lights, np.nan) if at_least is None else np.asarray(at_least, float)
-    grid = np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, grid_step)
+    grid = factor_grid(grid_step)
     k, spread = log2_k.astype(np.float64).copy(), sigma.astype(np.float64).copy()
     measured = int(np.isfinite(radiance).sum())
     if measured < LEVEL_MEASURED_SHARE * (measured + int(np.isfinite(bound).sum())):
