@@ -479,3 +479,67 @@ def test_an_evenness_that_runs_off_the_search_is_a_floor_not_a_centre():
     best = solve_factors(radiance, bound, noisy)
     floor = evenness_floor(best, radiance, bound, noisy)
     assert best[0] == 16.0 and 10.0 < floor[0] < 16.0
+
+
+def _lamp_and_lit_patch(patch_albedo: float, patch_fill: float):
+    """:func:`_photos` (the lamp 4 stops over its fill) and a pale patch on the floor 1.7 m
+    from the lamp's foot that the photos clipped at what it truly reflects, fitted as a
+    bright cluster (``patch_fill``) the lights finder took for a light."""
+    scene, cams, images, floors, light, surfaces, opaque = _photos(16.0)
+    lamp = scene.subset(light.splats)
+    centre = np.array([1.2, 0.02, 1.2])
+    a = np.arange(6) * 2 * np.pi / 6
+    spots = centre + 0.06 * np.stack([np.cos(a), np.zeros(6), np.sin(a)], 1)
+    # what the patch reflects: the sky (pi 0.05) and the lamp's seven splats at 16x
+    d = lamp.positions[None].astype(np.float64) - centre[None, None]
+    dist = np.linalg.norm(d, axis=-1)
+    r, s = lamp.base_colours[:, 0].astype(np.float64), lamp.scales[:, 0].astype(np.float64)
+    direct = (16.0 * r * lamp.opacities * 2 * np.pi * s ** 2 * d[..., 1] / dist ** 3).sum()
+    truth = patch_albedo / np.pi * (np.pi * 0.05 + direct)
+    patch = _flat(spots, 0.05, np.full((6, 3), patch_fill))
+    scene = _concat(scene, patch)
+    idx = np.arange(scene.count - 6, scene.count)
+    surfaces, opaque = np.append(surfaces, np.zeros(6, bool)), scene.opacities > 0.5
+    framed = 0
+    for cam, img, f in zip(cams, images, floors, strict=True):
+        uv, z = cam.project(spots)
+        for (u, v), depth in zip(uv, z, strict=True):
+            if depth > 0 and 1 <= u < 63 and 1 <= v < 47:
+                f[int(v) - 1:int(v) + 2, int(u) - 1:int(u) + 2] = truth
+                img[int(v) - 1:int(v) + 2, int(u) - 1:int(u) + 2] = truth
+                framed += 1
+    assert framed >= 6
+    patch_light = LightPower(position=centre, splats=idx, radius=0.08)
+    return scene, cams, images, floors, [light, patch_light], surfaces, opaque, truth
+
+
+def test_a_pale_surface_the_photos_clipped_is_not_weighed_as_a_light():
+    """A patch the lamp lights, clipped where the photos see it, reads no brighter than a
+    matte surface of albedo 0.7 there: it keeps its fill and says why; the lamp beside it
+    is weighed as it is alone."""
+    scene, cams, images, floors, lights, surfaces, opaque, truth = _lamp_and_lit_patch(
+        0.7, patch_fill=4.0 * 0.7 * 0.5)
+    out = infer_light_power(scene, lights, cams, images, floors, Y709, surfaces, opaque,
+                            extent=4.0, seed=1)
+    lamp, patch = lights
+    assert patch.factor == 1.0 and patch.source == "predicted"
+    assert "lit surface" in patch.details["note"]
+    # it faces its views, not the lamp: a little less light than its upward face gets
+    assert 0.5 <= patch.details["lit_surface_albedo"] <= 1.0
+    np.testing.assert_array_equal(out.sh[patch.splats], scene.sh[patch.splats])
+    assert abs(lamp.details["inferred_log2_factor"] - 4.0) <= 0.75
+    assert lamp.details["lit_surface_albedo"] > 10.0
+    assert lamp.source == "inferred"
+
+
+def test_a_clipped_patch_brighter_than_any_lit_surface_is_weighed_as_a_light():
+    """The same patch read 5x brighter than white paper would be there: no surface, a
+    light."""
+    scene, cams, images, floors, lights, surfaces, opaque, _ = _lamp_and_lit_patch(
+        5.0, patch_fill=4.0)
+    infer_light_power(scene, lights, cams, images, floors, Y709, surfaces, opaque,
+                      extent=4.0, seed=1)
+    patch = lights[1]
+    assert patch.details["lit_surface_albedo"] > 2.0
+    assert "inferred_log2_factor" in patch.details
+    assert "lit surface" not in patch.details.get("note", "")

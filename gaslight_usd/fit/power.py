@@ -87,6 +87,7 @@ from ..render.envmap import cube_face_cameras
 from ..render.many import render_many
 from ..splats import SplatScene, rgb_to_sh_dc, sh_dc_to_rgb
 from .data import scale_camera_to
+from .lamp_or_surface import LIT_SURFACE_ALBEDO, light_reading, lit_surface_albedos
 
 PREDICTOR_SIGMA_STOPS = 3.0
 """How far the uplift's fill of a clipped light may be off (stops, 1 sigma): the fast
@@ -668,6 +669,52 @@ def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarra
     return k, spread
 
 
+@dataclass
+class Weighing:
+    """The factors (log2 over the fills) the surfaces say, per weighed light."""
+
+    uniform: np.ndarray
+    """The albedos' uniformity's best factor."""
+    uniform_sigma: np.ndarray
+    """...its spread over bootstrap resamples and :data:`SYSTEMATIC_STOPS` (stops)."""
+    at_least: np.ndarray
+    """Where the uniformity ran off the search's top, the floor it says (NaN elsewhere)."""
+    best: np.ndarray
+    """The uniformity weighed with the albedos' level (:func:`with_albedo_prior`)."""
+    sigma: np.ndarray
+    """...and its spread (stops)."""
+
+
+def weigh_factors(radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray,
+                  rng: np.random.Generator, bootstrap: int = 32) -> Weighing:
+    """The surfaces' factors for the lights of ``irr`` ``(P, 1 + L)`` (module docstring)."""
+    uniform = solve_factors(radiance, bound, irr)
+    boots = [solve_factors(radiance[pick], bound[pick], irr[pick], grid_step=0.25)
+             for pick in (rng.integers(0, len(radiance), len(radiance))
+                          for _ in range(bootstrap))]
+    # half the central 68 % of the resamples' factors: a few resamples that run off to the
+    # search's ends inflate a standard deviation (docs/measurements.md, session 14)
+    spread = np.diff(np.quantile(np.asarray(boots), [0.16, 0.84], axis=0), axis=0)[0] / 2.0
+    uniform_sigma = np.hypot(spread, SYSTEMATIC_STOPS)
+    at_least = evenness_floor(uniform, radiance, bound, irr)
+    best, sigma = with_albedo_prior(uniform, uniform_sigma, radiance, bound, irr,
+                                    at_least=at_least)
+    return Weighing(uniform, uniform_sigma, at_least, best, sigma)
+
+
+def _columns(irr: np.ndarray, active: list[int]) -> np.ndarray:
+    """``irr`` with only the ``active`` lights apart; the others' light (at their fills)
+    joins the rest of the room's."""
+    others = [1 + j for j in range(irr.shape[1] - 1) if j not in active]
+    rest = irr[:, 0] + irr[:, others].sum(1)
+    return np.column_stack([rest, irr[:, [1 + j for j in active]]])
+
+
+def _accepted(log2_k: float, sigma: float) -> bool:
+    """Whether the surfaces pin a factor: inside the search and sure enough."""
+    return bool(LOG2_K_RANGE[0] < log2_k < LOG2_K_RANGE[1]) and sigma <= MAX_INFERRED_SIGMA_STOPS
+
+
 def infer_light_power(scene: SplatScene, lights: list[LightPower],
                       cameras: list[PinholeCamera], images: list[np.ndarray],
                       floors: list[np.ndarray | None], weights: np.ndarray,
@@ -715,35 +762,60 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                                      f"({int(np.isfinite(radiance).sum())}) to weigh "
                                      "it: the uplift's power stands")
         return scene
-    best = solve_factors(radiance, bound, irr)
-    boots = [solve_factors(radiance[pick], bound[pick], irr[pick], grid_step=0.25)
-             for pick in (rng.integers(0, len(radiance), len(radiance))
-                          for _ in range(bootstrap))]
-    # half the central 68 % of the resamples' factors: a few resamples that run off to the
-    # search's ends inflate a standard deviation (docs/measurements.md, session 14)
-    spread = np.diff(np.quantile(np.asarray(boots), [0.16, 0.84], axis=0), axis=0)[0] / 2.0
-    uniform, sigma_uniform = best, np.hypot(spread, SYSTEMATIC_STOPS)
-    at_least = evenness_floor(uniform, radiance, bound, irr)
-    best, sigmas = with_albedo_prior(uniform, sigma_uniform, radiance, bound, irr,
-                                     at_least=at_least)
+    # what lights each light's own place, to tell a lamp from a surface the lamps lit
+    seen_at = [light_reading(light.position, cameras, images, floors, weights)
+               for light in lights]
+    readings = np.array([r for r, _ in seen_at])
+    faces = np.array([np.zeros(3) if f is None else f for _, f in seen_at])
+    radii = np.array([light.radius for light in lights])
+    at_lights = gather_irradiance(scene, [light.splats for light in lights],
+                                  np.array([light.position for light in lights], np.float64),
+                                  faces, radii + 0.01 * extent, weights)
+    at_lights[[f is None for _, f in seen_at]] = np.nan
+    active = list(range(len(lights)))
+    while True:
+        weighed = weigh_factors(radiance, bound, _columns(irr, active), rng, bootstrap)
+        factors = np.ones(len(lights))
+        for i, j in enumerate(active):
+            if _accepted(weighed.best[i], weighed.sigma[i]):
+                factors[j] = 2.0 ** max(0.0, float(weighed.best[i]))
+        albedos = lit_surface_albedos(readings, at_lights, factors)
+        for j in active:
+            lights[j].details["lit_surface_albedo"] = (round(float(albedos[j]), 3)
+                                                       if np.isfinite(albedos[j]) else None)
+        lit = [j for j in active if albedos[j] <= LIT_SURFACE_ALBEDO]
+        if not lit:
+            break
+        # the likeliest surface goes first: the others' weighing changes without it
+        surface = min(lit, key=lambda j: albedos[j])
+        lights[surface].details["note"] = (
+            "a matte surface lit by the rest of the room and the other lights would read "
+            f"as bright as the photos read it (albedo {albedos[surface]:.2f}): taken for a "
+            "lit surface the photos clipped, not weighed; the uplift's power stands")
+        active.remove(surface)
+        if not active:
+            return scene
     out = scene.subset(np.arange(scene.count))
-    for j, light in enumerate(lights):
-        sigma_inf = float(sigmas[j])
+    for i, j in enumerate(active):
+        light = lights[j]
+        uniform, best = weighed.uniform, weighed.best
+        sigma_inf = float(weighed.sigma[i])
         lower = uniform.copy()  # did the albedo cap, not their spread, decide?
-        lower[j] -= 0.25
-        light.details.update({"inferred_log2_factor": round(float(best[j]), 3),
+        lower[i] -= 0.25
+        light.details.update({"inferred_log2_factor": round(float(best[i]), 3),
                               "inferred_sigma_stops": round(sigma_inf, 3),
-                              "uniformity_log2_factor": round(float(uniform[j]), 3),
-                              "uniformity_sigma_stops": round(float(sigma_uniform[j]), 3),
-                              "uniformity_ran_off": bool(np.isfinite(at_least[j])),
+                              "uniformity_log2_factor": round(float(uniform[i]), 3),
+                              "uniformity_sigma_stops": round(float(weighed.uniform_sigma[i]),
+                                                              3),
+                              "uniformity_ran_off": bool(np.isfinite(weighed.at_least[i])),
                               "surface_points": int(np.isfinite(radiance).sum()),
                               "clipped_surface_points": int(np.isfinite(bound).sum()),
                               # the albedo cap, not the albedos' spread, decided: little
                               # light but this one's reaches the surfaces, so the factor
                               # is the least that keeps them matte (a lower bound)
-                              "lower_bound": not feasible(lower, radiance, bound, irr)})
-        if not LOG2_K_RANGE[0] < best[j] < LOG2_K_RANGE[1] or \
-                sigma_inf > MAX_INFERRED_SIGMA_STOPS:
+                              "lower_bound": not feasible(lower, radiance, bound,
+                                                          _columns(irr, active))})
+        if not _accepted(best[i], sigma_inf):
             light.details["note"] = ("its surfaces do not pin its power (the search ran off "
                                      "its range, or it is uncertain by over "
                                      f"{MAX_INFERRED_SIGMA_STOPS:g} stops): the uplift's "
@@ -751,10 +823,10 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
             continue
         # the fill is a lower bound (module docstring): the surfaces' word above it, the
         # fill where they say less
-        log2_k = max(0.0, float(best[j]))
+        log2_k = max(0.0, float(best[i]))
         light.factor = float(2.0 ** log2_k)
         light.uncertainty_stops = sigma_inf
-        light.source = "inferred" if best[j] > 0.0 else "fused"
+        light.source = "inferred" if best[i] > 0.0 else "fused"
         out.sh[light.splats] = scaled_sh(scene.sh[light.splats], light.factor)
     return out
 
