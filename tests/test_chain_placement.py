@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from test_lights import LAMP, room_scene
 
-from gaslight_usd.bench.suite_chain import emitter_distance, light_placement
+from gaslight_usd.bench.suite_chain import emitter_distance, light_placement, weighing_summary
 
 WINDOW_LIGHT = {"name": "window", "kind": "rectangle", "center": [2.5, 1.6, 0.2],
                 "corners": [[2.5, 1.05, -0.5], [2.5, 1.05, 0.9], [2.5, 2.15, 0.9],
@@ -59,3 +59,24 @@ def test_emitter_spread_sees_floaters_in_front_of_the_window():
     assert row["light_spread_window"] == pytest.approx(0.3, abs=0.01)
     assert row["floating_share"] == pytest.approx(0.5, abs=0.01)
     assert np.isnan(row["light_spread_lamp"])
+
+
+def test_the_weighing_summary_names_each_emitters_clipped_light_and_false_ones():
+    """The fit's clipped lights, as its metrics list them: the lamp's (inferred), one by
+    the window that kept its fill as a lit surface, and a floater 1 m from both whose
+    power was raised."""
+    clipped = [
+        {"position": (LAMP + [0.0, 0.03, 0.0]).tolist(), "factor": 2.0 ** 6.5,
+         "power_source": "inferred", "power_uncertainty_stops": 1.2,
+         "lit_surface_albedo": 12.5},
+        {"position": [2.45, 1.6, 0.2], "factor": 1.0, "power_source": "predicted",
+         "power_uncertainty_stops": 3.0, "lit_surface_albedo": 0.6},
+        {"position": [0.5, 0.5, -1.5], "factor": 8.0, "power_source": "inferred",
+         "power_uncertainty_stops": 1.0},
+    ]
+    row = weighing_summary(clipped, [LAMP_LIGHT, WINDOW_LIGHT])
+    assert row["weighing_lamp"] == "inferred +6.50 (1.2) lit-surface albedo 12.50"
+    assert row["weighing_window"] == "predicted +0.00 (3.0) lit-surface albedo 0.60"
+    assert row["false_lights_weighed"] == 1
+    assert weighing_summary([], [LAMP_LIGHT]) == {"weighing_lamp": "",
+                                                  "false_lights_weighed": 0}

@@ -34,7 +34,11 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``light_dist_<light>``, ``lights_found``, ``stray_light_share`` -- where the lights
   the export would write are (:func:`light_placement`), the same on each probe's row;
   ``light_spread_<light>``, ``floating_share`` -- where their splats are
-  (:func:`emitter_spread`).
+  (:func:`emitter_spread`);
+* ``weighing_<light>``, ``false_lights_weighed`` -- what the fit decided about the
+  clipped light at each true light (its power's source and factor, or that it was
+  taken for a lit surface), and how many clipped lights away from every true one it
+  raised (:func:`weighing_summary`).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -240,6 +244,41 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str
     return row
 
 
+def weighing_summary(clipped: list[dict[str, Any]], lights: list[dict[str, Any]]
+                     ) -> dict[str, Any]:
+    """What the fit decided about each clipped light (``fit_metrics["clipped_lights"]``,
+    :mod:`gaslight_usd.fit.power`), against the true emitters:
+
+    * ``weighing_<name>`` -- for the clipped light nearest each true emitter (within
+      :data:`NEAR_EMITTER_M`): its power's source and factor over the fill, ``inferred
+      +10.75 (1.2)`` (log2, its uncertainty in stops), or why it was not weighed; empty
+      where no clipped light is near it;
+    * ``false_lights_weighed`` -- clipped lights farther than that from every true
+      emitter whose power was raised (a lit surface or a floater taken for a lamp).
+    """
+    row: dict[str, Any] = {f"weighing_{li['name']}": "" for li in lights}
+    if not clipped or not lights:
+        return row | {"false_lights_weighed": 0}
+    pos = np.array([c["position"] for c in clipped], np.float64)
+    dists = np.stack([emitter_distance(li, pos) for li in lights])  # (lights, clipped)
+    for li, d in zip(lights, dists, strict=True):
+        k = int(np.argmin(d))
+        if d[k] > NEAR_EMITTER_M:
+            continue
+        c = clipped[k]
+        text = (f"{c['power_source']} {math.log2(max(c['factor'], 1e-30)):+.2f} "
+                f"({c['power_uncertainty_stops']:.1f})")
+        if c.get("lit_surface_albedo") is not None:
+            text += f" lit-surface albedo {c['lit_surface_albedo']:.2f}"
+        row[f"weighing_{li['name']}"] = text
+    false = dists.min(axis=0) > NEAR_EMITTER_M
+    row["false_lights_weighed"] = int(sum(1 for c, f in zip(clipped, false, strict=True)
+                                          if f and c["factor"] > 1.0))
+    return row
+
+
+NEAR_EMITTER_M = 0.3
+"""A clipped light this close to a true emitter's surface is that emitter's."""
 FLOATING_M = 0.1
 """Emitter splats farther than this from every true emitter's surface are floating."""
 
@@ -395,6 +434,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                                                               preset_name, seed)
                 info = json.loads((folder / "scene.json").read_text())
                 placement = light_placement(scene, scene_lights(info))
+                placement |= weighing_summary(metrics.get("clipped_lights") or [],
+                                              scene_lights(info))
                 for row in probe_rows(scene, folder, scale, relight=not quick,
                                       renderer=renderer):
                     rows.append({"method": method, "setting": preset_name,
