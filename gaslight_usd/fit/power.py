@@ -64,7 +64,10 @@ apart; a window's or a large panel's broad, smooth light looks like more indirec
 light and trades off against the albedos instead (a window came out 2-4 stops too
 bright that way, ``docs/measurements.md``). Those keep the uplift's power, and say
 so. A light whose bootstrap spread exceeds :data:`MAX_INFERRED_SIGMA_STOPS` is not
-identifiable from its surfaces and keeps its fill too.
+identifiable from its surfaces and keeps its fill too. A clipped "light" that a matte
+surface lit by the rest of the room and the other weighed lights could be (it reads no
+brighter than albedo 1 would there: :mod:`.lamp_or_surface`) is taken for a lit surface
+the photos clipped: it is not weighed, and the others are weighed again without it.
 
 Measured by ``gaslight2usd bench --suite chain`` (power errors per light).
 """
@@ -796,9 +799,9 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
         if not active:
             return scene
     out = scene.subset(np.arange(scene.count))
+    uniform, best, columns = weighed.uniform, weighed.best, _columns(irr, active)
     for i, j in enumerate(active):
         light = lights[j]
-        uniform, best = weighed.uniform, weighed.best
         sigma_inf = float(weighed.sigma[i])
         lower = uniform.copy()  # did the albedo cap, not their spread, decide?
         lower[i] -= 0.25
@@ -813,8 +816,7 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                               # the albedo cap, not the albedos' spread, decided: little
                               # light but this one's reaches the surfaces, so the factor
                               # is the least that keeps them matte (a lower bound)
-                              "lower_bound": not feasible(lower, radiance, bound,
-                                                          _columns(irr, active))})
+                              "lower_bound": not feasible(lower, radiance, bound, columns)})
         if not _accepted(best[i], sigma_inf):
             light.details["note"] = ("its surfaces do not pin its power (the search ran off "
                                      "its range, or it is uncertain by over "
