@@ -11,20 +11,21 @@ from conftest import needs_example
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
-from gaslight_usd.fit.power import (
+from gaslight_usd.fit.albedos import (
     ALBEDO_PRIOR_MEDIAN,
-    LightPower,
-    aimed_camera,
-    clipped_extent,
     evenness_floor,
-    gather_irradiance,
+    solve_factors,
+    with_albedo_prior,
+)
+from gaslight_usd.fit.gather import aimed_camera, gather_irradiance
+from gaslight_usd.fit.power import (
+    LightPower,
+    clipped_extent,
     infer_light_power,
     light_is_clipped,
     light_sighting,
     measured_radiance,
     scaled_sh,
-    solve_factors,
-    with_albedo_prior,
 )
 from gaslight_usd.render import render
 from gaslight_usd.splats import SplatScene
@@ -64,7 +65,7 @@ def test_a_cluster_of_tiny_opaque_splats_keeps_its_power_in_the_aimed_view(monke
     of large splats (as fits grow round a bulb) widens the view aimed at it. That view is
     sized to the light's splats (``light_view_size``), so its irradiance is what a
     1024-pixel view gives, where 24 pixels overstate it."""
-    from gaslight_usd.fit import power
+    from gaslight_usd.fit import gather
 
     rng = np.random.default_rng(0)
     n = 400
@@ -79,8 +80,8 @@ def test_a_cluster_of_tiny_opaque_splats_keeps_its_power_in_the_aimed_view(monke
     n += 6
 
     def gathered(least: int, most: int) -> float:
-        monkeypatch.setattr(power, "LIGHT_VIEW_SIZE", least)
-        monkeypatch.setattr(power, "MAX_LIGHT_VIEW_SIZE", most)
+        monkeypatch.setattr(gather, "LIGHT_VIEW_SIZE", least)
+        monkeypatch.setattr(gather, "MAX_LIGHT_VIEW_SIZE", most)
         return float(gather_irradiance(bulb, [np.arange(n)], np.zeros((1, 3)),
                                        np.array([[0.0, 1.0, 0.0]]), np.array([1e-3]),
                                        Y709)[0, 1])

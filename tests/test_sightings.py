@@ -12,7 +12,7 @@ from pxr import Usd, UsdGeom
 from test_lights import LAMP, room_scene
 
 from gaslight_usd.fit.backdrop import concatenate
-from gaslight_usd.fit.power import aimed_camera
+from gaslight_usd.fit.gather import aimed_camera
 from gaslight_usd.lights import search_lights
 from gaslight_usd.ply import read_ply, write_ply
 from gaslight_usd.render import render

@@ -8,7 +8,7 @@ import numpy as np
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
-from gaslight_usd.fit.power import aimed_camera
+from gaslight_usd.fit.gather import aimed_camera
 from gaslight_usd.fit.sunk_lights import surface_sunk_lights
 from gaslight_usd.render import render
 from gaslight_usd.sightings import sight_lights

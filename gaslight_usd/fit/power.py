@@ -69,7 +69,10 @@ surface lit by the rest of the room and the other weighed lights could be (it re
 brighter than albedo 1 would there: :mod:`.lamp_or_surface`) is taken for a lit surface
 the photos clipped: it is not weighed, and the others are weighed again without it.
 
-Measured by ``gaslight2usd bench --suite chain`` (power errors per light).
+The irradiance is gathered by :mod:`.gather`; the albedos' evenness and level, and the
+factors they say, are :mod:`.albedos`; a lamp is told from a lit surface by
+:mod:`.lamp_or_surface`. Measured by ``gaslight2usd bench --suite chain`` (power errors
+per light, and what the fit decided about each).
 """
 
 from __future__ import annotations
@@ -79,17 +82,20 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import torch
 from scipy import ndimage
 from scipy.spatial import cKDTree
-from scipy.special import expit, log_ndtr
 
 from ..cameras import PinholeCamera
-from ..render import SplatParams, render
-from ..render.envmap import cube_face_cameras
-from ..render.many import render_many
 from ..splats import SplatScene, rgb_to_sh_dc, sh_dc_to_rgb
+from .albedos import (
+    LOG2_K_RANGE,
+    evenness_floor,
+    feasible,
+    solve_factors,
+    with_albedo_prior,
+)
 from .data import scale_camera_to
+from .gather import depth_map, gather_irradiance
 from .lamp_or_surface import LIT_SURFACE_ALBEDO, light_reading, lit_surface_albedos
 
 PREDICTOR_SIGMA_STOPS = 3.0
@@ -114,19 +120,6 @@ COMPACT_SHARE = 0.15
 """A light is weighed only when its radius, and that of the clipped region the photos saw
 it in (:func:`clipped_extent`), is at most this share of the captured space's median
 depth (a bulb, a shade, a 0.4 m panel in a 2.5 m room; not a window)."""
-CUBE_SIZE = 12
-LIGHT_VIEW_SIZE = 24
-"""The least size (pixels across) of the view aimed at a light (:func:`light_view_size`)."""
-MAX_LIGHT_VIEW_SIZE = 192
-LIGHT_PIXELS_PER_GRAIN = 3.0
-"""How many pixels a light's typical splat (its median largest scale) spans at least in
-the view aimed at it. Coarser, a cluster of tiny nearly opaque splats turns translucent
-(even in the antialiased mode each splat is widened to about a pixel and its opacity
-cut), the splats behind shine through and the light gains power, and its factor comes
-out low (a ``balanced`` fit's small bulb splats at a fixed 24 pixels:
-``docs/measurements.md``, session 22)."""
-POINTS_PER_BATCH = 64
-"""Surface points whose cube maps are drawn in one pass (:mod:`gaslight_usd.render.many`)."""
 SAMPLE_POINTS = 1000
 """Surface splats drawn as candidates (cheap: the photos are looked up at each)."""
 GATHERED_POINTS = 320
@@ -155,54 +148,8 @@ bench's fits most such points were floaters off the room's shell, and their irra
 gathered at the wrong place, misleads the weighing (``docs/measurements.md``, session
 22)."""
 MAX_LIGHTS = 6
-LOG2_K_RANGE = (-2.0, 16.0)
-"""The factors searched (log2 over the fill). A bare bulb can be 15 stops over the
-room's median, its fill a few over the white: the chain bench's ``bulb`` room needed
-11-13, and a search that ran off its end at 12 left the lamp at its fill, 8 stops
-short (``docs/measurements.md``, session 19)."""
-ALBEDO_QUANTILE = 0.75
-"""This share of the sampled albedos must stay at or under 1 for a factor to be possible
-(a matte surface reflects at most what reaches it)."""
-ALBEDO_PRIOR_MEDIAN = 0.3
-"""What a room's surfaces reflect, before the photos say: a median albedo of 0.3
-(interiors run from dark floors and wood near 0.1-0.2 to painted walls and ceilings near
-0.5-0.8; 18 % is the photographer's average scene). It decides only where the albedos'
-uniformity cannot: a bare bulb that lights every surface alike leaves the uniformity
-flat over several stops, and its factor wandered with each draw of surface points
-(``docs/measurements.md``, session 21)."""
-ALBEDO_PRIOR_STOPS = 1.0
-"""...within this many stops either way (1 sigma)."""
-LEVEL_MEASURED_SHARE = 0.5
-"""The albedos' level is weighed in only where the photos measured at least this share of
-the surface points (the rest are bounds: clipped in every view). Around a shaded lamp
-the photos clip most of them; the level a censored fit puts on the rest is then an
-extrapolation, and on a held-out room it pulled an accurate uniformity stops over
-(``docs/measurements.md``, session 21)."""
-ALIKE_TOLERANCE = 0.05
-"""Lights weighed together get one factor (over their own fills) where that scores within
-this much (negative log-likelihood per point) of the best separate factors. Where the
-surfaces see several lights alike they pin the sum of their light, not its split, and
-the score is flat along the split: on the chain bench's ``panels`` room (seed 1) the
-best split, (+3.5, -2.0) stops for two ceiling panels that each needed about +4, beat
-one factor for both (+2.4) by 0.026; the coordinate search had given the first panel
-all of it (``docs/measurements.md``, session 19). A tolerance, not calibrated further."""
 MIN_SAMPLES = 20
-MIN_SIGMA = 0.02
-"""Least spread of the log2-albedos a fit may claim (stops)."""
-FALSE_BOUND_SHARE = 0.05
-"""Prior share of the clipped surface points whose bound is false (the pixel clipped
-for a light in front of the surface): :func:`censored_fit`."""
-GENUINE_LOGIT = math.log1p(-FALSE_BOUND_SHARE) - math.log(FALSE_BOUND_SHARE)
-"""The prior log-odds that a bound is genuine."""
 
-
-def _normal_logsf(a: np.ndarray) -> np.ndarray:
-    """log P(Z > a) for a standard normal (``scipy.stats`` costs a second to import)."""
-    return log_ndtr(-a)
-
-
-def _normal_logpdf(a: np.ndarray) -> np.ndarray:
-    return -0.5 * a * a - 0.5 * math.log(2.0 * math.pi)
 
 
 @dataclass
@@ -322,17 +269,6 @@ def surface_samples(scene: SplatScene, candidates: np.ndarray, opaque: np.ndarra
     return cand[flat], normals[flat]
 
 
-def depth_map(scene: SplatScene, camera: PinholeCamera) -> np.ndarray:
-    """``(H, W)`` alpha-weighted depth of the splats seen by ``camera`` (inf where none)."""
-    z = (scene.positions.astype(np.float64) @ camera.R.T + camera.t)[:, 2]
-    params = channel_scene(scene, np.repeat(np.maximum(z, 0.0)[:, None], 3, 1))
-    with torch.no_grad():
-        out = render(params, camera, background=0.0)
-    alpha = out.alpha.cpu().numpy()
-    return np.where(alpha > 0.5, out.image[..., 0].cpu().numpy() / np.maximum(alpha, 1e-6),
-                    np.inf)
-
-
 def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray,
                       cameras: list[PinholeCamera], images: list[np.ndarray],
                       floors: list[np.ndarray | None], weights: np.ndarray
@@ -382,294 +318,6 @@ def measured_radiance(scene: SplatScene, points: np.ndarray, normals: np.ndarray
     bound[only_clipped] = np.nanmedian(bounds[:, only_clipped], axis=0)
     return out, bound
 
-
-def pixel_directions(cams: list[PinholeCamera]) -> tuple[np.ndarray, np.ndarray]:
-    """World directions ``(B, H W, 3)`` and solid angles ``(B, H W)`` of the pixels of
-    ``B`` cameras of one size."""
-    x, y = np.meshgrid(np.arange(cams[0].width) + 0.5, np.arange(cams[0].height) + 0.5)
-    intr = np.array([[c.fx, c.fy, c.cx, c.cy] for c in cams], np.float64)[:, None]
-    u = (x.ravel()[None] - intr[..., 2]) / intr[..., 0]
-    v = (y.ravel()[None] - intr[..., 3]) / intr[..., 1]
-    rays = np.stack([u, v, np.ones_like(u)], -1)  # (B, HW, 3) camera frame
-    d = np.einsum("bpi,bij->bpj", rays, np.stack([c.R for c in cams]))  # camera -> world
-    norm = np.linalg.norm(d, axis=-1)
-    return d / norm[..., None], 1.0 / (intr[..., 0] * intr[..., 1]) / norm ** 3
-
-
-def aimed_camera(position: np.ndarray, target: np.ndarray, half_angle: float, size: int
-                 ) -> PinholeCamera:
-    """A square pinhole at ``position`` looking at ``target``, ``2 half_angle`` wide."""
-    fwd = (target - position) / np.linalg.norm(target - position)
-    up = np.array([0.0, 1.0, 0.0]) if abs(fwd[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    right = np.cross(fwd, up)
-    right /= np.linalg.norm(right)
-    rot = np.stack([right, np.cross(fwd, right), fwd])
-    f = (size / 2.0) / math.tan(half_angle)
-    return PinholeCamera(size, size, f, f, size / 2.0, size / 2.0, rot, -rot @ position)
-
-
-def light_view_size(half_angles: np.ndarray, distances: np.ndarray, grain: float) -> int:
-    """Pixels across the views aimed at a light from ``distances`` with ``half_angles``,
-    so that its typical splat (``grain`` across, scene units) spans
-    :data:`LIGHT_PIXELS_PER_GRAIN` pixels in each, within [:data:`LIGHT_VIEW_SIZE`,
-    :data:`MAX_LIGHT_VIEW_SIZE`]."""
-    if len(distances) == 0 or grain <= 0:
-        return LIGHT_VIEW_SIZE
-    needed = 2.0 * np.tan(half_angles) * distances * LIGHT_PIXELS_PER_GRAIN / grain
-    return int(np.clip(math.ceil(float(needed.max())), LIGHT_VIEW_SIZE, MAX_LIGHT_VIEW_SIZE))
-
-
-def channel_scene(scene: SplatScene, channels: np.ndarray) -> SplatParams:
-    """The scene's geometry with view-independent colours ``channels`` (N, 3), drawn in the
-    antialiased mode (a splat's footprint keeps its integral at any pixel size)."""
-    sh = np.zeros((scene.count, 1, 3), np.float32)
-    sh[:, 0] = rgb_to_sh_dc(channels.astype(np.float32))
-    return SplatParams.from_scene(SplatScene(scene.positions, scene.rotations, scene.log_scales,
-                                             scene.opacity_logits, sh,
-                                             metadata={"antialiased": True}))
-
-
-def gather_irradiance(scene: SplatScene, groups: list[np.ndarray], points: np.ndarray,
-                      normals: np.ndarray, offsets: np.ndarray, weights: np.ndarray
-                      ) -> np.ndarray:
-    """``(P, 1 + L)`` irradiance luminance at each point: from everything but the
-    clipped lights (a coarse cube map: it is smooth), then from each light as fitted
-    (a narrow view aimed at the light, fine enough that its small splats keep their
-    power); every splat occludes. NaN where a point is too close to a light."""
-    lum = scene.base_colours @ weights
-    is_light = np.zeros(scene.count, bool)
-    for g in groups:
-        is_light[g] = True
-    chans = np.zeros((scene.count, 3), np.float32)
-    chans[~is_light, 0] = lum[~is_light]
-    for j, g in enumerate(groups[:2]):
-        chans[g, 1 + j] = lum[g]
-    rest = channel_scene(scene, chans)
-    extra = []
-    for start in range(2, len(groups), 3):
-        more = np.zeros((scene.count, 3), np.float32)
-        for c, g in enumerate(groups[start:start + 3]):
-            more[g, c] = lum[g]
-        extra.append(channel_scene(scene, more))
-    centres = [scene.positions[g].astype(np.float64).mean(0) for g in groups]
-    radii = [float(np.linalg.norm(scene.positions[g] - c, axis=1).max()
-                   + 3.0 * scene.scales[g].max()) for g, c in zip(groups, centres, strict=True)]
-    grains = [float(np.median(scene.scales[g].max(1))) for g in groups]
-    cube_dirs, cube_omega = pixel_directions(cube_face_cameras(np.zeros(3), CUBE_SIZE))
-    cube_dirs, cube_omega = cube_dirs.reshape(-1, 3), cube_omega.ravel()
-    out = np.full((len(points), 1 + len(groups)), np.nan)
-    eyes = points + normals * offsets[:, None]
-    nears = 0.5 * offsets
-    for lo in range(0, len(points), POINTS_PER_BATCH):
-        part = slice(lo, min(lo + POINTS_PER_BATCH, len(points)))
-        faces = [cam for eye in eyes[part] for cam in cube_face_cameras(eye, CUBE_SIZE)]
-        cubes = render_many(rest, faces, near=np.repeat(nears[part], 6))
-        cubes = cubes[..., 0].reshape(-1, 6 * CUBE_SIZE * CUBE_SIZE)
-        cosine = np.clip(normals[part] @ cube_dirs.T, 0, None)
-        out[part, 0] = np.sum(cosine * cube_omega * cubes, axis=1)
-    for j, (c, r, grain) in enumerate(zip(centres, radii, grains, strict=True)):
-        dist = np.linalg.norm(c - eyes, axis=1)
-        aimed = np.flatnonzero(dist >= 2.0 * r)
-        halves = np.arcsin(np.minimum(0.99, r / dist[aimed])) * 1.2
-        size = light_view_size(halves, dist[aimed], grain)
-        cams = [aimed_camera(eyes[p], c, float(h), size)
-                for p, h in zip(aimed, halves, strict=True)]
-        params = rest if j < 2 else extra[(j - 2) // 3]
-        channel = 1 + j if j < 2 else (j - 2) % 3
-        if not cams:
-            continue
-        images = render_many(params, cams, near=nears[aimed])
-        d, o = pixel_directions(cams)
-        cosine = np.clip(np.einsum("bpi,bi->bp", d, normals[aimed]), 0, None)
-        out[aimed, 1 + j] = np.sum(cosine * o * images[..., channel].reshape(len(cams), -1),
-                                   axis=1)
-    return out
-
-
-def censored_fit(y: np.ndarray, c: np.ndarray, iterations: int = 25
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A normal fitted to each row of ``(G, P)`` samples, some of them only known to be
-    at least ``c`` (right-censored; ``y`` NaN there, ``c`` NaN where ``y`` is known).
-
-    Expectation-maximisation with the truncated normal's moments. A bound may be false
-    (a surface seen through a clipped light in front of it): each is genuine with prior
-    ``1 -`` :data:`FALSE_BOUND_SHARE`, else it says nothing, so no one bound can outweigh
-    the measured points. Returns ``(mu, sigma, nll)`` with ``nll`` the mean negative
-    log-likelihood over the points."""
-    known = np.isfinite(y)
-    cens = np.isfinite(c)
-    yk = np.where(known, y, 0.0)
-    cc = np.where(cens, c, 0.0)
-    n_known = np.maximum(known.sum(1), 1)
-    mu = yk.sum(1) / n_known
-    sigma = np.sqrt(np.maximum((((yk - mu[:, None]) ** 2) * known).sum(1) / n_known,
-                               MIN_SIGMA ** 2))
-    for _ in range(iterations if cens.any() else 1):
-        a = (cc - mu[:, None]) / sigma[:, None]
-        log_sf = _normal_logsf(a)
-        genuine = np.where(cens, expit(log_sf + GENUINE_LOGIT), 0.0)
-        lam = np.exp(_normal_logpdf(a) - log_sf)
-        e1 = mu[:, None] + sigma[:, None] * lam
-        e2 = sigma[:, None] ** 2 * np.maximum(1.0 + a * lam - lam ** 2, 0.0) + e1 ** 2
-        n = known.sum(1) + genuine.sum(1)
-        mu = (yk.sum(1) + (genuine * e1).sum(1)) / n
-        second = ((yk ** 2) * known).sum(1) + (genuine * e2).sum(1)
-        sigma = np.sqrt(np.maximum(second / n - mu ** 2, MIN_SIGMA ** 2))
-    z = (yk - mu[:, None]) / sigma[:, None]
-    nll = (np.where(known, np.log(sigma[:, None]) + 0.5 * z ** 2, 0.0).sum(1)
-           - np.where(cens, np.logaddexp(
-               math.log1p(-FALSE_BOUND_SHARE) + _normal_logsf((cc - mu[:, None]) / sigma[:, None]),
-               math.log(FALSE_BOUND_SHARE)), 0.0).sum(1))
-    return mu, sigma, nll / np.maximum((known | cens).sum(1), 1)
-
-
-def albedo_scores(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
-                  trim: float = 0.1) -> np.ndarray:
-    """How unlikely the log-albedos are, per row of irradiance ``totals`` ``(G, P)`` (one
-    row per trial factor): the negative log-likelihood per point of a normal fitted to
-    them, points the photos only clipped (``bound``) counting as at least their bound
-    (:func:`censored_fit`), the ``trim`` share of the measured points farthest from
-    their median left out (bounds are not trimmed: a false one is weighed down by
-    :data:`FALSE_BOUND_SHARE` instead).
-    With no clipped point it is the log of the spread (least variance, as before).
-    Infinite where over a quarter of the albedos would exceed 1 (:data:`ALBEDO_QUANTILE`).
-
-    Leaving clipped points out would select on brightness: near a clipped lamp, the
-    surfaces it lights brightest clip, the darker ones stay, and the factor that makes
-    them look like the rest falls short (1.2 stops on a ``balanced`` fit of ``room:11``,
-    ``docs/measurements.md``)."""
-    _, nll, over = albedo_fit(totals, radiance, bound, trim)
-    return np.where(over, np.inf, nll)
-
-
-def albedo_fit(totals: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
-               trim: float = 0.1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per row of irradiance ``totals`` ``(G, P)``: the log2-albedos' fitted mean (their
-    level), the negative log-likelihood per point (:func:`albedo_scores`) and whether
-    over a quarter of the albedos exceed 1."""
-    totals = np.maximum(np.atleast_2d(totals), 1e-12)
-    known = np.isfinite(radiance)
-    y = np.where(known, np.log2(math.pi * np.where(known, radiance, 1.0) / totals), np.nan)
-    cens = np.isfinite(bound)
-    c = np.where(cens, np.log2(math.pi * np.where(cens, bound, 1.0) / totals), np.nan)
-    over = ((y > 0) | (c > 0)).sum(1) > (1.0 - ALBEDO_QUANTILE) * (known | cens).sum()
-    ref = np.nanmedian(y, axis=1, keepdims=True)
-    dev = np.abs(y - ref)
-    keep = cens | (dev <= np.nanquantile(dev, 1.0 - trim, axis=1, keepdims=True))
-    y, c = np.where(keep, y, np.nan), np.where(keep, c, np.nan)
-    mu, _, nll = censored_fit(y, c)
-    return mu, nll, over
-
-
-def factor_grid(step: float) -> np.ndarray:
-    """The ``log2 k`` searched: :data:`LOG2_K_RANGE`, ``step`` apart."""
-    return np.arange(LOG2_K_RANGE[0], LOG2_K_RANGE[1] + 1e-9, step)
-
-
-def totals_over(irr: np.ndarray, log2_k: np.ndarray, j: int, grid: np.ndarray) -> np.ndarray:
-    """``(G, P)`` irradiance at each point with light ``j`` at each factor of ``grid``
-    (log2) and the other lights at ``log2_k``."""
-    others = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k) - irr[:, 1 + j] * 2.0 ** log2_k[j]
-    return others[None] + (2.0 ** grid)[:, None] * irr[None, :, 1 + j]
-
-
-def solve_factors(radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray,
-                  grid_step: float = 0.125) -> np.ndarray:
-    """``log2 k`` per light minimising :func:`albedo_scores` (coordinate grid search);
-    for several lights, one factor for all of them where it scores within
-    :data:`ALIKE_TOLERANCE` of that."""
-    lights = irr.shape[1] - 1
-    k = np.zeros(lights)
-    grid = factor_grid(grid_step)
-    for _ in range(3 if lights > 1 else 1):
-        for j in range(lights):
-            scores = albedo_scores(totals_over(irr, k, j, grid), radiance, bound)
-            if np.isfinite(scores).any():
-                k[j] = grid[int(np.argmin(scores))]
-    if lights > 1:
-        best = albedo_scores((irr[:, 0] + irr[:, 1:] @ (2.0 ** k))[None], radiance, bound)[0]
-        shared = albedo_scores(irr[:, 0][None] + (2.0 ** grid)[:, None]
-                               * irr[:, 1:].sum(1)[None], radiance, bound)
-        if np.isfinite(shared).any() and shared.min() <= best + ALIKE_TOLERANCE:
-            k[:] = grid[int(np.argmin(shared))]
-    return k
-
-
-def feasible(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray, irr: np.ndarray
-             ) -> bool:
-    """Whether factors ``2**log2_k`` keep the albedos under the cap (:func:`albedo_scores`)."""
-    totals = irr[:, 0] + irr[:, 1:] @ (2.0 ** log2_k)
-    return bool(np.isfinite(albedo_scores(totals[None], radiance, bound))[0])
-
-
-def evenness_floor(log2_k: np.ndarray, radiance: np.ndarray, bound: np.ndarray,
-                   irr: np.ndarray, grid_step: float = 0.125) -> np.ndarray:
-    """Per light, where the uniformity's best factor ``log2_k`` is the search's top: the
-    least factor that scores within :data:`ALIKE_TOLERANCE` of it, the others held at
-    theirs (NaN for the other lights).
-
-    A uniformity that keeps improving to the end of the search says "a light at least
-    this bright", not a centre: there the rest of the room's gathered irradiance adds
-    spread instead of explaining it, and the brighter the light the more it drowns that
-    spread. Taken as a centre at the search's top it pulled the level's posterior stops
-    over (``bulb`` seed 0 on the chain bench; ``docs/measurements.md``, session 22)."""
-    grid = factor_grid(grid_step)
-    out = np.full(len(log2_k), np.nan)
-    for j in np.flatnonzero(log2_k >= LOG2_K_RANGE[1] - 1e-9):
-        scores = albedo_scores(totals_over(irr, log2_k, j, grid), radiance, bound)
-        finite = np.isfinite(scores)
-        if finite.any():
-            out[j] = grid[int(np.argmax(scores <= scores[finite].min() + ALIKE_TOLERANCE))]
-    return out
-
-
-def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarray,
-                      bound: np.ndarray, irr: np.ndarray, grid_step: float = 0.125,
-                      at_least: np.ndarray | None = None
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """The factors (log2) and their spread (stops) once the albedos' *level* is weighed
-    in beside their uniformity (module docstring): per light, the posterior over a grid
-    of ``log2 k`` of a normal around the uniformity's estimate ``log2_k`` (``sigma``)
-    and the prior that the surfaces' median albedo is near
-    :data:`ALBEDO_PRIOR_MEDIAN` (:data:`ALBEDO_PRIOR_STOPS`); factors that push over a
-    quarter of the albedos over 1 are impossible. Lights the uniformity weighed as one
-    (:data:`ALIKE_TOLERANCE`) stay one. Coordinate-wise for several lights. Where the
-    photos only bounded most of the points (:data:`LEVEL_MEASURED_SHARE`) the level is
-    not measured and the uniformity's estimate is returned as it is.
-
-    ``at_least``: per light, where the uniformity ran off the search's top
-    (:func:`evenness_floor`; NaN elsewhere): there it only says "at least this", and
-    only factors under it are penalised (with ``sigma``)."""
-    lights = len(log2_k)
-    floors = np.full(lights, np.nan) if at_least is None else np.asarray(at_least, float)
-    grid = factor_grid(grid_step)
-    k, spread = log2_k.astype(np.float64).copy(), sigma.astype(np.float64).copy()
-    measured = int(np.isfinite(radiance).sum())
-    if measured < LEVEL_MEASURED_SHARE * (measured + int(np.isfinite(bound).sum())):
-        return k, spread
-    groups = ([np.arange(lights)] if lights > 1 and np.ptp(log2_k) == 0
-              else [np.array([j]) for j in range(lights)])
-    level = math.log2(ALBEDO_PRIOR_MEDIAN)
-    for _ in range(3 if len(groups) > 1 else 1):
-        for g in groups:
-            trial = np.repeat(k[None], len(grid), 0)
-            trial[:, g] = grid[:, None]
-            mu, _, over = albedo_fit(irr[:, 0][None] + (2.0 ** trial) @ irr[:, 1:].T,
-                                     radiance, bound)
-            centre, width = float(log2_k[g[0]]), float(sigma[g].max())
-            off = (grid - centre if not np.isfinite(floors[g]).any()
-                   else np.minimum(grid - float(np.nanmax(floors[g])), 0.0))
-            log_post = (-0.5 * (off / width) ** 2
-                        - 0.5 * ((mu - level) / ALBEDO_PRIOR_STOPS) ** 2)
-            log_post[over] = -np.inf
-            if not np.isfinite(log_post).any():
-                continue
-            weight = np.exp(log_post - log_post.max())
-            mean = float(np.sum(weight * grid) / weight.sum())
-            k[g] = grid[int(np.argmax(log_post))]
-            spread[g] = math.sqrt(max(float(np.sum(weight * (grid - mean) ** 2)
-                                            / weight.sum()), grid_step ** 2 / 12.0))
-    return k, spread
 
 
 @dataclass
