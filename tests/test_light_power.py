@@ -518,7 +518,7 @@ def test_a_pale_surface_the_photos_clipped_is_not_weighed_as_a_light():
     """A patch the lamp lights, clipped where the photos see it, reads no brighter than a
     matte surface of albedo 0.7 there: it keeps its fill and says why; the lamp beside it
     is weighed as it is alone."""
-    scene, cams, images, floors, lights, surfaces, opaque, truth = _lamp_and_lit_patch(
+    scene, cams, images, floors, lights, surfaces, opaque, _ = _lamp_and_lit_patch(
         0.7, patch_fill=4.0 * 0.7 * 0.5)
     out = infer_light_power(scene, lights, cams, images, floors, Y709, surfaces, opaque,
                             extent=4.0, seed=1)
