@@ -27,9 +27,9 @@ from ..cameras import PinholeCamera
 
 LIT_SURFACE_ALBEDO = 1.0
 """A clipped light that a matte surface of at most this albedo, lit by what the weighing
-says lights it, would read as bright as the photos read it, is taken for a lit surface.
-On the chain bench's fits the real lamps and panels needed 1.9-11 (facing their views,
-the other lights at their true power); the clipped yellow box 0.56."""
+says lights it, would read as bright as the photos read it, is taken for a lit surface
+(the physical bound: on the chain bench's fits every real lamp and panel needed about
+twice that or more, the clipped box under it; ``docs/measurements.md``, session 23)."""
 
 
 def light_reading(position: np.ndarray, cameras: list[PinholeCamera],
