@@ -71,10 +71,9 @@ def lit_surface_albedos(readings: np.ndarray, irradiance: np.ndarray,
     (:func:`light_reading`). NaN entries (a point too close to a light to aim at it; a
     light's own column) count as no light: less light makes a surface less likely. Inf
     where nothing lights it at all."""
-    lights = np.nan_to_num(np.asarray(irradiance, np.float64)[:, 1:], nan=0.0)
+    irr = np.nan_to_num(np.asarray(irradiance, np.float64), nan=0.0)
+    lights = irr[:, 1:].copy()
     np.fill_diagonal(lights, 0.0)
-    total = (np.nan_to_num(np.asarray(irradiance, np.float64)[:, 0], nan=0.0)
-             + lights @ np.asarray(factors, np.float64))
-    with np.errstate(divide="ignore"):
-        return np.where(total > 0, math.pi * np.asarray(readings, np.float64)
-                        / np.maximum(total, 1e-30), np.inf)
+    total = irr[:, 0] + lights @ np.asarray(factors, np.float64)
+    return np.where(total > 0, math.pi * np.asarray(readings, np.float64)
+                    / np.maximum(total, 1e-30), np.inf)
