@@ -378,9 +378,12 @@ def test_a_light_the_fit_weighed_says_its_power_was_inferred():
     assert window.power_source == "predicted"
 
 
-def test_a_clipped_bulb_the_photos_outlined_is_a_light_however_faint_its_fill():
+@pytest.mark.parametrize("views, framed", [([0, 1], 2), ([0], 1)])
+def test_a_clipped_bulb_the_photos_outlined_is_a_light_however_faint_its_fill(views, framed):
     """A bare bulb's splats hold the uplift's fill, a lower bound that can be under a
-    thousandth of a window's power: kept where the photos outlined a light there."""
+    thousandth of a window's power: kept where the photos outlined a light there, by
+    two photos' outlines or by the one photo that frames it (a sunk light the fit moved
+    back along that photo's rays, :mod:`gaslight_usd.fit.sunk_lights`)."""
     scene, parts = room_scene()
     lamp = parts["lamp"]
     scene.log_scales[lamp] = np.log(0.005)
@@ -388,7 +391,7 @@ def test_a_clipped_bulb_the_photos_outlined_is_a_light_however_faint_its_fill():
     found = search_lights(scene)
     assert not found.emitters[lamp].any()  # too faint beside the window to be a light
     scene.metadata["light_seeds"] = [{"position": LAMP.tolist(), "size": 0.05,
-                                      "views": [0, 1], "framed": 2}]
+                                      "views": views, "framed": framed}]
     found = search_lights(scene)
     assert found.emitters[lamp].all()
     lamp_light = min(found.lights, key=lambda li: np.linalg.norm(li.position - LAMP))

@@ -108,13 +108,20 @@ def test_a_light_one_photo_frames_sunk_behind_the_ceiling_is_put_on_it():
                                np.repeat(ratio[:, None], 3, 1), rtol=1e-5)
     # nothing else moved
     np.testing.assert_array_equal(out.positions[: fit.count - 5], fit.positions[: fit.count - 5])
+    # and the light is reported where the photo's outline places it: that photo, at the
+    # moved splats' power-weighted centre, as large as the outline there
+    assert len(report.placed) == 1 and report.as_dict()["placed_lights"] == 1
+    placed = report.placed[0]
+    assert placed.views == [0] and placed.framed == 1
+    np.testing.assert_allclose(placed.position, moved.mean(0), atol=1e-3)
+    assert 0.05 < placed.size < 0.2  # the splats lie within 6 cm of the centre, 5 cm wide
 
 
 def test_a_light_whose_place_a_second_photo_frames_is_left_where_it_was():
     """There parallax, not the one photo, placed it (and this photo saw none there)."""
     fit, cams, images = _views(aim_light_from_second=True)
     out, report = _surface(fit, cams, images)
-    assert report.moved == 0 and report.refused == 5
+    assert report.moved == 0 and report.refused == 5 and not report.placed
     np.testing.assert_array_equal(out.positions, fit.positions)
 
 
@@ -123,7 +130,7 @@ def test_lights_inside_the_room_are_not_moved():
     _, cams, images = _views()
     hanging = _with(_box(), _light(EYE + 0.8 * (LIGHT - EYE), 0.8))
     out, report = _surface(hanging, cams, images)
-    assert report.moved == 0 and report.refused == 0
+    assert report.moved == 0 and report.refused == 0 and not report.placed
     np.testing.assert_array_equal(out.positions, hanging.positions)
 
 

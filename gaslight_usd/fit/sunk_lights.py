@@ -26,7 +26,11 @@ draws it on the same pixels:
   the lights finder no longer took for a light). Refused where another training photo
   frames the new place: there parallax placed the light, and a bright splat outside
   the space on a compact light's rays is something else (the lit ceiling behind a lamp;
-  what a lampshade hides from the space's one viewpoint).
+  what a lampshade hides from the space's one viewpoint). The light moved is recorded
+  where its outline places it (:attr:`SurfacedLights.placed`, the splats'
+  ``light_seeds``): its clipped radiance says only "at least the white", and without
+  that the lights finder took the chain bench's ``panels:7`` ceiling panel, which one
+  photo frames, for a lit patch, so it was never weighed.
 - held only by **broad** outlines (windows, skylights, large panels), more than
   :data:`OFF_SURFACE_SHARE` of its distance in front of or behind the room's boundary,
   onto it: the captured space's *sealed* boundary, the local planes of the surfaces,
@@ -43,7 +47,7 @@ draws it on the same pixels:
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -55,7 +59,7 @@ from ..capture import CaptureSpace, capture_space
 from ..sightings import PeakMap, Sightings, peak_map
 from ..splats import SplatScene
 from ..surroundings import splat_sigma
-from .light_seeds import MAX_CONE_DEG, framing
+from .light_seeds import MAX_CONE_DEG, LightSeed, framing
 
 RAY_STEPS = 128
 """Samples along a light splat's ray where it is tested against the captured space."""
@@ -84,10 +88,18 @@ class SurfacedLights:
     refused: int
     """Splats left where they were: a sunk light's new place more than one photo frames,
     or a broad light's some photo framing it shows no light at."""
+    placed: list[LightSeed] = field(default_factory=list)
+    """The sunk compact lights moved, each where it now is, as the one photo whose whole
+    outline holds it places it (``views``: that photo's index among the views given,
+    ``size``: the outline's radius there): the lights finder takes such a light for a
+    light without testing its clipped radiance (:func:`gaslight_usd.lights.outlined_lights`),
+    which only says "at least the white"; the fit then weighs it by the surfaces it
+    lights, which tell a light from a lit patch (:mod:`.lamp_or_surface`)."""
 
     def as_dict(self) -> dict:
         return {"moved": self.moved, "power_share": round(self.power_share, 4),
-                "mean_move": round(self.mean_move, 4), "refused": self.refused}
+                "mean_move": round(self.mean_move, 4), "refused": self.refused,
+                "placed_lights": len(self.placed)}
 
 
 def _exit_along(space: CaptureSpace, eye: np.ndarray, pos: np.ndarray, span: np.ndarray
@@ -142,6 +154,7 @@ class _Moves:
     eye: np.ndarray
     ratio: np.ndarray
     refused: int
+    placed: list[LightSeed] = field(default_factory=list)
 
     @classmethod
     def none(cls) -> _Moves:
@@ -150,11 +163,12 @@ class _Moves:
 
 def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: np.ndarray,
                   outside: np.ndarray, eyes: np.ndarray, space: CaptureSpace,
-                  cameras: list[PinholeCamera]) -> _Moves:
+                  cameras: list[PinholeCamera], sightings: Sightings) -> _Moves:
     """Compact lights (the bright splats ``idx`` one compact ``region`` holds) with a
     splat ``outside`` the space, moved whole along their photo's rays (from ``eyes``,
     per region) until their power-weighted centre is on the boundary: the photo draws
-    them on the same pixels, their shape kept."""
+    them on the same pixels, their shape kept; each moved light is also returned as
+    that photo's outline places it (:attr:`SurfacedLights.placed`)."""
     sunk = np.unique(region[outside])
     if not len(sunk):
         return _Moves.none()
@@ -174,7 +188,13 @@ def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: n
     refused = ok & (framing(eye + (centre - eye) * ratio[:, None], cameras,
                             margin=0.0).sum(axis=1) > 1)
     go = (ok & ~refused)[group]
-    return _Moves(idx[go], eye[group[go]], ratio[group[go]], int(refused[group].sum()))
+    at = eye + (centre - eye) * ratio[:, None]
+    far = np.linalg.norm(at - eye, axis=1)
+    placed = [LightSeed(position=at[k], size=float(far[k] * np.tan(sightings.radii[r])),
+                        views=[int(sightings.view[r])], framed=1)
+              for k, r in enumerate(sunk) if ok[k] and not refused[k]]
+    return _Moves(idx[go], eye[group[go]], ratio[group[go]], int(refused[group].sum()),
+                  placed)
 
 
 def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
@@ -247,7 +267,7 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     # outside as the lights finder tells backdrop (gaslight_usd.capture.backdrop_mask)
     outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
     moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c], eyes,
-                           space, cameras),
+                           space, cameras, sightings),
              _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
                                 cameras, views, np.asarray(whites, np.float64), weights)]
     idx = np.concatenate([m.idx for m in moves])
@@ -264,4 +284,4 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
         moved=int(len(idx)),
         power_share=float(power[idx].sum() / max(power[bright].sum(), 1e-30)),
         mean_move=float(np.linalg.norm(target - pos[idx], axis=1).mean()),
-        refused=sum(m.refused for m in moves))
+        refused=sum(m.refused for m in moves), placed=moves[0].placed)

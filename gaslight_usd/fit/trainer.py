@@ -504,6 +504,8 @@ class Trainer:
         photos = [self.data.light_views()[i] for i in self.train]
         sightings = sight_lights(views, photos, whites, weights)
         scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings)
+        for light in surfaced.placed:  # indices among the training views -> all views
+            light.views = [self.train[v] for v in light.views]
         if surfaced.moved:
             self.progress.message(f"moved {surfaced.moved} light splat(s) off the room's "
                                   "surfaces back onto them")
@@ -562,7 +564,8 @@ class Trainer:
                           "cameras": {"centres": [[round(float(v), 6) for v in c.center]
                                                   for c in self.data.cameras]},
                           "light_sightings": self._light_sightings(),
-                          "light_seeds": [seed.as_dict() for seed in self._light_seeds()]}
+                          "light_seeds": [seed.as_dict() for seed in self._light_seeds()]
+                          + [light.as_dict() for light in surfaced.placed]}
         lights: list[LightPower] = []
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):
