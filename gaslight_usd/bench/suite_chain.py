@@ -38,7 +38,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``weighing_<light>``, ``false_lights_weighed`` -- what the fit decided about the
   clipped light at each true light (its power's source and factor, or that it was
   taken for a lit surface), and how many clipped lights away from every true one it
-  raised (:func:`weighing_summary`).
+  raised (:func:`weighing_summary`);
+* ``one_photo_lights`` -- sunk compact lights the fit moved back along the one photo
+  that frames them and kept as lights there (:mod:`gaslight_usd.fit.sunk_lights`).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -436,6 +438,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                 placement = light_placement(scene, scene_lights(info))
                 placement |= weighing_summary(metrics.get("clipped_lights") or [],
                                               scene_lights(info))
+                placement["one_photo_lights"] = int(
+                    (metrics.get("surfaced_lights") or {}).get("placed_lights", 0))
                 for row in probe_rows(scene, folder, scale, relight=not quick,
                                       renderer=renderer):
                     rows.append({"method": method, "setting": preset_name,
