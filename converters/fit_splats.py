@@ -43,6 +43,9 @@ class FitOptions:
     uplift_power: bool = False
     """Leave clipped lights at the uplift's power (do not weigh them by the surfaces they
     light, :mod:`gaslight_usd.fit.power`)."""
+    no_planes: bool = False
+    """Leave the splats free of the planes the walls, floor and ceiling make
+    (:mod:`gaslight_usd.fit.planes`)."""
     working_size: int | None = None
     """The views' long side in the fit (default: the preset's; the bench's shortened fits)."""
     tolerance_stops: float | None = None
@@ -98,7 +101,8 @@ def fit(ctx: StageContext) -> StageResult:
     cfg = preset(name).updated(budget=opts.budget, iterations=opts.iterations,
                                working_size=opts.working_size,
                                refine_poses=bool(opts.refine_poses),
-                               infer_power=False if opts.uplift_power else None)
+                               infer_power=False if opts.uplift_power else None,
+                               plane_prior=False if opts.no_planes else None)
     seed = int(opts.seed if opts.seed is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
     data = load_fit_data(hdr_dir, poses, working_size=cfg.working_size)

@@ -227,6 +227,41 @@ def test_surface_fill_puts_pixels_on_the_sparse_points_plane():
     assert set(np.unique(cols)) <= {2.0, 7.0}
 
 
+def test_surface_fill_keeps_an_oblique_wall_flat():
+    """A wall seen at a grazing angle: the neighbours' median depth smears the fill off
+    the plane (its depth changes across the neighbours); the affine fit of inverse depth
+    puts every fill point on it, and a corner (two planes) falls back to the median."""
+    from gaslight_usd.fit.init import fill_depths, surface_fill_points
+    rng = np.random.default_rng(3)
+    yaw = np.radians(50.0)  # cameras turned 50 deg towards the wall x = 2: it fills the view
+    rot = np.array([[np.cos(yaw), 0, -np.sin(yaw)], [0, 1, 0], [np.sin(yaw), 0, np.cos(yaw)]])
+    cams = [PinholeCamera(64, 48, 40, 40, 32, 24, rot, -rot @ np.array([x, 0.0, 0.0]),
+                          name=f"c{k}.jpg") for k, x in enumerate((0.0, 0.2))]
+    # sparse points: rays of random pixels of the first camera, cut by the wall
+    px = rng.uniform([0, 0], [64, 48], (400, 2))
+    rays = np.column_stack([(px[:, 0] - 32) / 40, (px[:, 1] - 24) / 40, np.ones(400)]) @ rot
+    wall = rays * (2.0 / rays[:, :1])
+    images = [np.ones((48, 64, 3), np.float32)] * 2
+    pts, _ = surface_fill_points(wall, None, cams, images, 200, rng)
+    assert len(pts) == 200
+    np.testing.assert_allclose(pts[:, 0], 2.0, atol=1e-6)
+    # the old rule (the neighbours' median depth) on the same kind of pixels is off the wall
+    cam = cams[0]
+    uv, z = cam.project(wall)
+    px = rng.uniform([0, 0], [64, 48], (50, 2))
+    near = np.argsort(((uv[None] - px[:, None]) ** 2).sum(-1), axis=1)[:, :6]
+    rays = np.column_stack([(px[:, 0] - 32) / 40, (px[:, 1] - 24) / 40, np.ones(50)]) @ rot
+    median_x = (rays * np.median(z[near], axis=1)[:, None])[:, 0]
+    affine_x = (rays * fill_depths(px, uv[near], z[near])[:, None])[:, 0]
+    assert np.abs(affine_x - 2.0).max() < 1e-6
+    assert np.median(np.abs(median_x - 2.0)) > 0.01
+    # two planes among the neighbours: no affine fit; the median depth stands
+    corner_uv = np.array([[[0, 0], [1, 0], [0, 1], [1, 1], [2, 0], [2, 1]]], float)
+    corner_z = np.array([[1.0, 1.0, 1.0, 1.0, 4.0, 4.0]])
+    got = fill_depths(np.array([[1.5, 0.5]]), corner_uv, corner_z)
+    assert got[0] == pytest.approx(1.0)
+
+
 def test_backdrop_fills_only_what_no_camera_sees():
     from gaslight_usd.fit.backdrop import unseen_backdrop
     from gaslight_usd.splats import SplatScene, rgb_to_sh_dc
@@ -450,3 +485,17 @@ def test_every_preset_fits_small_lights_to_keep_their_power_in_finer_cameras():
     # one view of nine may lose the lamp behind a splat drawn 8x finer (seeds 0-3: its
     # least view 0.21-0.46, the next 0.64-0.76; the medians 0.79-0.91)
     assert np.median(default) > 0.7 and np.sort(default)[1] > 0.6
+
+
+def test_no_planes_flag_frees_the_splats(synthetic, tmp_path):
+    """``fit --no-planes`` fits without the plane prior and says so in the PLY."""
+    root, _, _ = synthetic
+    for flags, name in (([], "held.ply"), (["--no-planes"], "free.ply")):
+        assert main(["fit", str(root / "hdr"), "--poses", str(root / "sparse"), "-o",
+                     str(tmp_path / name), "--iterations", "20", "-q", *flags]) == 0
+    held = read_ply(tmp_path / "held.ply").metadata
+    free = read_ply(tmp_path / "free.ply").metadata
+    assert held["provenance"]["config"]["plane_prior"] is True
+    assert isinstance(held["fit_metrics"]["planes"]["planes"], list)
+    assert free["provenance"]["config"]["plane_prior"] is False
+    assert free["fit_metrics"]["planes"] is None

@@ -61,6 +61,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="leave lights every photo clipped at the uplift's guess of their "
                         "power (by default a compact one, a bulb or a small panel, is weighed "
                         "by the surfaces it lights, as the photos measured them)")
+    p.add_argument("--no-planes", action="store_true",
+                   help="do not hold the splats near the room's large planes (walls, floor, "
+                        "ceiling, found in the initial points) on them; for a set that is "
+                        "not built of planes")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint an interrupted fit left")
     add_common(p)
@@ -74,7 +78,8 @@ def run(args: argparse.Namespace) -> int:
     out = args.output
     options = {"preset": args.preset, "budget": args.budget, "iterations": args.iterations,
                "device": args.device, "seed": args.seed, "resume": args.resume,
-               "refine_poses": args.refine_poses, "uplift_power": args.uplift_power}
+               "refine_poses": args.refine_poses, "uplift_power": args.uplift_power,
+               "no_planes": args.no_planes}
     runner = ChainRun(out.parent if str(out.parent) else Path("."),
                       settings_from(args, device=args.device, seed=args.seed),
                       default_registry(), progress_from(args))

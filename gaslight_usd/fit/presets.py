@@ -75,6 +75,12 @@ class FitConfig:
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
+    plane_prior: bool = True
+    """Keep the splats near the large planes the initial points lie on (walls, floor,
+    ceiling) on those planes, and flat along them (:mod:`.planes`)."""
+    flatness_weight: float = 0.01
+    """Weight of the held splats' thickness along their plane
+    (:meth:`.planes.PlanePrior.flatness`)."""
     elongation_limit: float = 4.0
     """Largest-to-middle scale ratio above which ``elongation_weight`` penalises a splat."""
     elongation_weight: float = 0.0

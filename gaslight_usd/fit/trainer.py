@@ -54,6 +54,7 @@ from .init import initial_points, neighbour_scales
 from .light_seeds import LightSeed, LightSeedPoints, find_light_seeds, seed_points
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
+from .planes import PlanePrior, find_planes
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
@@ -113,6 +114,10 @@ class Trainer:
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
         self._seeds: list[LightSeed] | None = None
+        whites = (self._view_whites(self.train) if config.plane_prior and config.clip_bounds
+                  else None)
+        self._plane_white = None if whites is None else float(np.median(whites))
+        """Over this luminance a splat is a clipped light's, free of the planes."""
 
     # -- state -------------------------------------------------------------------
     def _fresh(self) -> None:
@@ -132,6 +137,13 @@ class Trainer:
         self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs,
                                         self.device)
         self.model.antialiased = cfg.antialiased
+        self.planes = None
+        if cfg.plane_prior:
+            centres = np.array([c.center for c in cams])
+            self.planes = PlanePrior(*find_planes(pts, centres,
+                                                  np.random.default_rng([self.seed, 11])),
+                                     self.device)
+            self._assign_planes()
         self.refiner = (PoseRefiner(cams, cfg.lr_pose_rotation,
                                     cfg.lr_pose_translation * self.extent, self.device)
                         if cfg.refine_poses else None)
@@ -157,6 +169,17 @@ class Trainer:
         self._points_model = model
         return model
 
+    def _assign_planes(self) -> None:
+        """Hold the splats near the planes on them (:mod:`.planes`), all but those over
+        the photos' white where some photo clipped: a clipped light's depth is a guess
+        the lights' machinery (seeds, sunk lights, one-photo lights) settles, so it is
+        only kept in front of the wall, not pinned among the wall's splats."""
+        free = None
+        if self._plane_white is not None:
+            lum = torch.exp(self.model.t["log_colour"].detach()) @ self.y_weights
+            free = lum > self._plane_white
+        self.planes.assign(self.model.t["means"], free)
+
     def _reset_stats(self) -> None:
         n = self.model.count
         self.grad_sum = torch.zeros(n, device=self.device)
@@ -170,7 +193,8 @@ class Trainer:
                 "idle_rounds": self.idle_rounds,
                 "grad_sum": self.grad_sum, "grad_count": self.grad_count,
                 "history": self.history, "elapsed": self.elapsed,
-                "poses": self.refiner.state_dict() if self.refiner else None}
+                "poses": self.refiner.state_dict() if self.refiner else None,
+                "planes": self.planes.state_dict() if self.planes else None}
 
     def _restore(self, state: dict) -> bool:
         if (state.get("config") != self.cfg.as_dict() or state.get("seed") != self.seed
@@ -186,6 +210,8 @@ class Trainer:
         self.grad_sum = state["grad_sum"].to(self.device)
         self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
+        self.planes = (PlanePrior.from_state(state["planes"], self.device)
+                       if state.get("planes") is not None else None)
         self.refiner = None
         if state.get("poses") is not None:
             self.refiner = PoseRefiner([self.data.cameras[i] for i in self.train],
@@ -253,6 +279,9 @@ class Trainer:
         opac = torch.sigmoid(m.t["opacity_logits"].detach())
         size = torch.exp(m.t["log_scales"].detach()).max(1).values
         m.prune((opac < cfg.min_opacity) | (size > cfg.max_scale * self.extent))
+        if self.planes is not None:  # new splats, new indices
+            self._assign_planes()
+            self.planes.snap(m.t["means"])
         self._reset_stats()
 
     def _backdrop_reserve(self) -> int:
@@ -270,6 +299,8 @@ class Trainer:
                                      min=1.0)
         idle = score < MIN_CONTRIBUTION
         self.model.prune(idle)
+        if self.planes is not None:
+            self._assign_planes()
         return int(idle.sum())
 
     def _cut_oversized(self, scene: SplatScene, backdrop: int
@@ -366,6 +397,9 @@ class Trainer:
         if cfg.elongation_weight:
             loss = loss + cfg.elongation_weight * elongation_penalty(
                 self.model.t["log_scales"], cfg.elongation_limit)
+        if self.planes is not None and cfg.flatness_weight:
+            loss = loss + cfg.flatness_weight * self.planes.flatness(
+                self.model.t["quats"], self.model.t["log_scales"])
         if not bool(torch.isfinite(loss)):
             raise FitDiverged(
                 f"the fit diverged at step {self.step + 1} of {cfg.iterations} on view "
@@ -381,6 +415,8 @@ class Trainer:
                 self.grad_count.index_add_(0, out.index,
                                            torch.ones(len(out.index), device=g.device))
         self.model.step()
+        if self.planes is not None:
+            self.planes.snap(self.model.t["means"])
         if self.refiner is not None:
             self.refiner.step(k)
         self.step += 1
@@ -586,6 +622,7 @@ class Trainer:
             "pruned_idle": pruned,
             "oversized_cut": oversized,
             "init": self.init_method,
+            "planes": self.planes.as_dict() if self.planes is not None else None,
             "fit_seconds": round(seconds, 2),
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,

@@ -1,0 +1,276 @@
+"""Large flat surfaces (walls, floor, ceiling) as planes the fit keeps its splats on.
+
+A handful of photos leave a splat's depth loosely tied: on a plain wall a splat
+a few centimetres in front of or behind it looks the same in every photo, and a
+short fit hardly moves its splats (``fast``'s position steps add up to a few
+centimetres). Scattered about a wall, they are harmless in the photos but wrong
+for light: a window's splats spread 0.1-0.4 m off its wall put its power in the
+wrong place for a probe half a metre away. So the planes the initial points lie
+on are found once, and through the fit every splat near a plane's patch (a
+little in front of it, or further behind it, where no camera sees) is put back
+on it after each step, and pulled flat along it by :meth:`PlanePrior.flatness`.
+Measured by ``gaslight2usd bench --suite chain`` (the probes near the lights).
+
+Which planes: the main directions are the normals of the planes RANSAC finds
+first in the points, squared up as a room's are (:func:`main_axes`); along each,
+the offsets where the points crowd are planes (:func:`find_planes`), if the
+cameras are all on one side, the points cover a patch both ways and the patch
+hides few points behind it. A room's walls pass; a slice through the room at a
+table's height does not (the room lies behind it), and neither, for now, does a
+plain ceiling or floor whose fill is scattered behind it (:data:`MAX_BEHIND`).
+Sweeping a scene's main directions for planes is Gallup et al. 2007's idea; here
+it runs over the points, not pixels: pixel-wise photo-consistency on plain
+walls put only a quarter of their pixels within 6 cm (``fast``'s 120-pixel
+views).
+
+Scale: distances are shares of the initial points' extent (the box holding the
+central 96 % of them), so the rule reads the same in metres or in SfM units.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..render.project import quat_to_rotmat
+
+INLIER_SHARE = 0.01
+"""Inlier distance: this share of the initial points' extent (0.07 m in a 5 x 4 x 3 m
+room); also the offset histogram's bin (half of it)."""
+REACH = 2.0
+"""Splats up to this many inlier distances in front of a plane are put on it..."""
+REACH_BEHIND = 5.0
+"""...and up to this many behind it (where no camera can see them): a light the fit
+from photos sank behind its ceiling (a clipped panel's depth is a guess) was hidden by
+the ceiling once the ceiling was held opaque on its plane, and came out 2-4 stops off."""
+LIFT = 0.25
+"""A free splat (a light) near a plane is kept at least this many inlier distances in
+front of it: a ceiling panel from photos, its splats 1-5 cm behind the held ceiling
+(whose plane the fill's smear puts a few centimetres off), was hidden by it, the fit
+dimmed it and its power came out 2-4 stops short."""
+MIN_POINTS_SHARE = 0.01
+"""A plane holds at least this share of the initial points..."""
+PEAK_OVER_MEDIAN = 4.0
+"""...and its offset bin this many times the median bin's count along its direction."""
+MIN_SPAN = 0.15
+"""...and spans at least this share of the extent both ways (a wall, not a shelf)."""
+MAX_BEHIND = 1.0
+"""...and, seen from the cameras, hides no more than this many points (a share of its
+own) behind its patch. On the chain bench's rooms a wall hid at most 0.4 times its
+points (the fill's smear behind a window), a slice through the room (at a table's
+height, a lamp's) 2.5-20 times (the room above or below it); a plain ceiling or floor,
+which the sparse points barely find, 2.5-2.7 times (its fill scattered half a metre
+behind it): it is not held, as one such "floor" was a table top 0.57 m up."""
+MIN_CAMERAS_IN_FRONT = 0.9
+"""Share of the cameras on one side of a plane (a room's wall has them all inside)."""
+CANDIDATES = 512
+"""Three-point draws of the RANSAC that finds the main directions."""
+
+
+@dataclass
+class Plane:
+    normal: np.ndarray
+    """(3,) unit normal, towards the cameras."""
+    offset: float
+    """normal . x of the plane's points."""
+    lo: np.ndarray
+    """(2,) lower corner of the patch its points cover in the plane's (u, v) axes."""
+    hi: np.ndarray
+    axes: np.ndarray
+    """(2, 3) in-plane axes."""
+    points: int
+
+    def as_dict(self) -> dict:
+        return {"normal": [round(float(v), 5) for v in self.normal],
+                "offset": round(float(self.offset), 5), "points": self.points,
+                "size": [round(float(v), 4) for v in self.hi - self.lo]}
+
+
+def _ransac_normal(points: np.ndarray, pool: np.ndarray, tau: float,
+                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """The normal of the plane holding most of ``points[pool]`` and its inliers (bool)."""
+    tri = points[rng.choice(pool, (CANDIDATES, 3))]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(normals, axis=1)
+    ok = length > 1e-12
+    normals = normals[ok] / length[ok, None]
+    offsets = (normals * tri[ok, 0]).sum(axis=1)
+    scored = points[pool[:4000]]  # the draws' cost is candidates x points
+    best = int(np.argmax((np.abs(scored @ normals.T - offsets) < tau).sum(axis=0)))
+    inliers = np.zeros(len(points), bool)
+    inliers[pool] = np.abs(points[pool] @ normals[best] - offsets[best]) < tau
+    normal, offset = normals[best], offsets[best]
+    for share in (1.0, 0.5, 0.25):  # least squares on ever nearer inliers: the smear's
+        held = points[inliers & (np.abs(points @ normal - offset) < share * tau)]
+        if len(held) < 3:
+            break
+        centre = held.mean(axis=0)
+        normal = np.linalg.eigh(np.cov((held - centre).T))[1][:, 0]
+        offset = float(normal @ centre)
+    return normal, inliers
+
+
+def main_axes(points: np.ndarray, tau: float, rng: np.random.Generator) -> np.ndarray:
+    """(k <= 3, 3) orthonormal directions of the scene's large planes: the normal of the
+    plane RANSAC finds first, the next plane's at least 60 deg from it (squared up to
+    it), and their cross product (a room's walls, floor and ceiling)."""
+    pool = rng.permutation(len(points))
+    normals = []
+    for _ in range(4):
+        if len(pool) < max(MIN_POINTS_SHARE * len(points), 3):
+            break
+        normal, inliers = _ransac_normal(points, pool, tau, rng)
+        if inliers.sum() < MIN_POINTS_SHARE * len(points):
+            break
+        normals.append(normal)
+        pool = pool[~inliers[pool]]
+    if not normals:
+        return np.zeros((0, 3))
+    first = normals[0]
+    for other in normals[1:]:
+        if abs(other @ first) < 0.5:
+            second = other - (other @ first) * first
+            second /= np.linalg.norm(second)
+            return np.stack([first, second, np.cross(first, second)])
+    return first[None]
+
+
+def _peaks(values: np.ndarray, width: float) -> list[float]:
+    """Offsets where ``values`` crowd: local maxima of their histogram (bins ``width``,
+    smoothed 1-2-1) over :data:`MIN_POINTS_SHARE` of them and :data:`PEAK_OVER_MEDIAN`
+    times the median bin."""
+    edges = np.arange(values.min() - width, values.max() + 2 * width, width)
+    counts = np.convolve(np.histogram(values, edges)[0], [0.25, 0.5, 0.25], mode="same")
+    level = max(MIN_POINTS_SHARE * len(values), PEAK_OVER_MEDIAN * float(np.median(counts)))
+    tops = [i for i in range(1, len(counts) - 1) if counts[i] >= level
+            and counts[i] >= counts[i - 1] and counts[i] > counts[i + 1]]
+    return [float(edges[i] + width / 2) for i in tops]
+
+
+def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generator
+                ) -> tuple[list[Plane], float]:
+    """The large planes ``points`` lie on (module docstring) and the inlier distance.
+    ``cameras``: (V, 3) the views' centres (a plane has them on one side)."""
+    points = np.asarray(points, np.float64)
+    if len(points) < 30:
+        return [], 0.0
+    lo, hi = np.percentile(points, 2, axis=0), np.percentile(points, 98, axis=0)
+    extent = float(np.linalg.norm(hi - lo))
+    tau = INLIER_SHARE * extent
+    planes: list[Plane] = []
+    for axis in main_axes(points, tau, rng):
+        along = points @ axis
+        other = np.eye(3)[int(np.argmin(np.abs(axis)))]  # the world axis least like it
+        u = other - (other @ axis) * axis
+        u /= np.linalg.norm(u)
+        axes = np.stack([u, np.cross(axis, u)])
+        for peak in _peaks(along, tau / 2):
+            near = np.abs(along - peak) < tau / 2
+            offset = float(along[near].mean())
+            side = np.sign(cameras @ axis - offset)
+            front = 1.0 if (side > 0).sum() >= (side < 0).sum() else -1.0
+            if (side == front).mean() < MIN_CAMERAS_IN_FRONT:
+                continue  # cameras on both sides: a slice through the room
+            uv = points[near] @ axes.T
+            p_lo, p_hi = np.percentile(uv, 2, axis=0), np.percentile(uv, 98, axis=0)
+            if np.min(p_hi - p_lo) < MIN_SPAN * extent:
+                continue  # a strip (a shelf's edge, a row of points): nothing to hold
+            within = np.all((points @ axes.T >= p_lo) & (points @ axes.T <= p_hi), axis=1)
+            behind = within & (front * (along - offset) < -REACH * tau)
+            if behind.sum() > MAX_BEHIND * near.sum():
+                continue  # it would hide what the views saw behind it
+            planes.append(Plane(front * axis, front * offset, p_lo, p_hi, axes,
+                                int(near.sum())))
+    return planes, tau
+
+
+class PlanePrior:
+    """The planes of :func:`find_planes` and which splats they hold."""
+
+    def __init__(self, planes: list[Plane], tau: float, device: str | torch.device = "cpu"):
+        self.planes, self.tau = planes, tau
+        f = torch.float32
+        self.normals = torch.tensor(np.array([p.normal for p in planes]).reshape(-1, 3),
+                                    dtype=f, device=device)
+        self.offsets = torch.tensor([p.offset for p in planes], dtype=f, device=device)
+        self.member = torch.zeros(0, dtype=torch.long, device=device)
+        self.lifted = torch.zeros(0, dtype=torch.long, device=device)
+        """Each free splat's plane it is kept in front of (-1: none)."""
+
+    def assign(self, means: torch.Tensor, free: torch.Tensor | None = None) -> None:
+        """Each splat's plane (-1: none): the nearest whose patch (grown by the reach)
+        holds it, within :data:`REACH` in front of it or :data:`REACH_BEHIND` behind.
+        Splats marked ``free`` (bool; a light's, whose depth is the lights' machinery's
+        to find) are not held; those behind a plane, or less than :data:`LIFT` in
+        front, are kept :data:`LIFT` in front of it (drawn over the wall, not hidden
+        behind it)."""
+        n = means.shape[0]
+        if not self.planes:
+            self.member = torch.full((n,), -1, dtype=torch.long, device=means.device)
+            self.lifted = self.member.clone()
+            return
+        x = means.detach().double().cpu().numpy()
+        reach = REACH * self.tau
+        dist = np.full((n, len(self.planes)), np.inf)
+        for k, plane in enumerate(self.planes):
+            d = x @ plane.normal - plane.offset  # > 0: the cameras' side
+            uv = x @ plane.axes.T
+            inside = np.all((uv >= plane.lo - reach) & (uv <= plane.hi + reach), axis=1)
+            near = (d < reach) & (d > -REACH_BEHIND * self.tau)
+            dist[:, k] = np.where(inside & near, np.abs(d), np.inf)
+        best = dist.argmin(axis=1)
+        member = np.where(np.isfinite(dist[np.arange(n), best]), best, -1)
+        lifted = np.full(n, -1)
+        if free is not None:
+            free = free.detach().cpu().numpy()
+            lifted[free] = member[free]
+            member[free] = -1
+        self.member = torch.as_tensor(member, dtype=torch.long, device=means.device)
+        self.lifted = torch.as_tensor(lifted, dtype=torch.long, device=means.device)
+
+    def held(self) -> int:
+        return int((self.member >= 0).sum())
+
+    @torch.no_grad()
+    def snap(self, means: torch.Tensor) -> None:
+        """Put the held splats back on their planes, and the lifted ones at least
+        :data:`LIFT` in front of theirs (in place)."""
+        for which, gap, at_most in ((self.member, 0.0, False), (self.lifted, LIFT, True)):
+            on = which >= 0
+            if not bool(on.any()):
+                continue
+            n = self.normals[which[on]]
+            off = (means[on] * n).sum(dim=1) - self.offsets[which[on]] - gap * self.tau
+            if at_most:
+                off = off.clamp(max=0.0)
+            means[on] = means[on] - off[:, None] * n
+
+    def flatness(self, quats: torch.Tensor, log_scales: torch.Tensor) -> torch.Tensor:
+        """Mean thickness of the held splats along their plane's normal, in inlier
+        distances (a disc lying in the plane: 0)."""
+        on = self.member >= 0
+        if not bool(on.any()):
+            return log_scales.sum() * 0.0
+        rot = quat_to_rotmat(quats[on])  # columns: the splat's axes
+        along = (rot * self.normals[self.member[on]][:, :, None]).sum(dim=1)  # (m, 3)
+        thick = torch.sqrt(((torch.exp(log_scales[on]) * along) ** 2).sum(dim=1) + 1e-20)
+        return (thick / self.tau).mean()
+
+    def as_dict(self) -> dict:
+        return {"planes": [p.as_dict() for p in self.planes],
+                "inlier_distance": round(float(self.tau), 5), "splats_held": self.held(),
+                "lights_lifted": int((self.lifted >= 0).sum())}
+
+    def state_dict(self) -> dict:
+        return {"tau": self.tau, "member": self.member.cpu(), "lifted": self.lifted.cpu(),
+                "planes": [{"normal": p.normal, "offset": p.offset, "lo": p.lo, "hi": p.hi,
+                            "axes": p.axes, "points": p.points} for p in self.planes]}
+
+    @classmethod
+    def from_state(cls, state: dict, device: str | torch.device = "cpu") -> PlanePrior:
+        prior = cls([Plane(**p) for p in state["planes"]], state["tau"], device)
+        prior.member = state["member"].to(device)
+        prior.lifted = state["lifted"].to(device)
+        return prior

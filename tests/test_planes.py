@@ -1,0 +1,223 @@
+"""The plane prior (:mod:`gaslight_usd.fit.planes`): a room's planes found from smeared
+points, slices through the room refused, held splats put back on their planes."""
+
+import numpy as np
+import pytest
+import torch
+
+from gaslight_usd.fit.planes import PlanePrior, find_planes
+
+ROOM_LO, ROOM_HI = np.array([-2.5, 0.0, -2.0]), np.array([2.5, 3.0, 2.0])
+
+
+def room_points(rng, per_face=400, smear=0.02, junk=300):
+    """Points on a 5 x 3 x 4 m room's six faces (Gaussian smear along the normal), plus
+    junk scattered through the room (the fill's stray points)."""
+    pts = []
+    for axis in range(3):
+        for value in (ROOM_LO[axis], ROOM_HI[axis]):
+            p = rng.uniform(ROOM_LO, ROOM_HI, (per_face, 3))
+            p[:, axis] = value + rng.normal(0, smear, per_face)
+            pts.append(p)
+    pts.append(rng.uniform(ROOM_LO, ROOM_HI, (junk, 3)))
+    return np.concatenate(pts)
+
+
+def cameras_inside(rng, n=12):
+    return rng.uniform([-1.0, 1.2, -1.0], [1.0, 1.6, 1.0], (n, 3))
+
+
+def test_finds_a_rooms_six_faces_through_the_smear():
+    rng = np.random.default_rng(0)
+    # the room turned 20 deg about the vertical: the directions come from the points
+    yaw = np.radians(20)
+    rot = np.array([[np.cos(yaw), 0, np.sin(yaw)], [0, 1, 0], [-np.sin(yaw), 0, np.cos(yaw)]])
+    pts = room_points(rng) @ rot.T
+    planes, tau = find_planes(pts, cameras_inside(rng) @ rot.T, rng)
+    assert len(planes) == 6
+    # (room axis, where along it): n . x = offset with n along that axis
+    found = [(a, float(p.offset / (p.normal @ rot[:, a])))
+             for p in planes for a in range(3) if abs(p.normal @ rot[:, a]) > 0.99]
+    assert len(found) == 6
+    assert sorted(a for a, _ in found) == [0, 0, 1, 1, 2, 2]
+    for axis, offset in found:
+        truth = min((ROOM_LO[axis], ROOM_HI[axis]), key=lambda v: abs(v - offset))
+        assert offset == pytest.approx(truth, abs=0.01)
+    for plane in planes:  # normals face the cameras
+        assert plane.normal @ (np.array([0, 1.4, 0]) @ rot.T) - plane.offset > 0
+
+
+def test_a_slice_through_the_room_is_not_a_plane():
+    """Box tops at one height across the room crowd like a plane, but the floor lies
+    behind them: refused (and the floor, the ceiling are still found)."""
+    rng = np.random.default_rng(1)
+    pts = room_points(rng)
+    tops = rng.uniform(ROOM_LO, ROOM_HI, (300, 3))
+    tops[:, 1] = 0.9 + rng.normal(0, 0.01, 300)
+    planes, _ = find_planes(np.concatenate([pts, tops]), cameras_inside(rng), rng)
+    heights = sorted(abs(p.offset) for p in planes if abs(p.normal[1]) > 0.99)
+    assert heights == pytest.approx([0.0, 3.0], abs=0.02)
+
+
+def test_cameras_on_both_sides_make_no_plane():
+    rng = np.random.default_rng(2)
+    pts = rng.uniform(-1, 1, (1500, 3))
+    pts[:800, 0] = rng.normal(0, 0.005, 800)  # a dense sheet x = 0
+    cams = np.array([[-0.8, 0, 0], [0.8, 0, 0], [-0.5, 0.3, 0], [0.5, -0.3, 0.1]])
+    planes, _ = find_planes(pts, cams, rng)
+    assert not [p for p in planes if abs(p.normal[0]) > 0.99]
+
+
+def test_too_few_points_make_no_planes():
+    planes, tau = find_planes(np.zeros((10, 3)), np.zeros((2, 3)), np.random.default_rng(0))
+    assert planes == [] and tau == 0.0
+
+
+def test_prior_puts_held_splats_on_their_plane_and_leaves_the_rest():
+    rng = np.random.default_rng(3)
+    planes, tau = find_planes(room_points(rng), cameras_inside(rng), rng)
+    prior = PlanePrior(planes, tau)
+    means = torch.tensor([[0.3, 2.95, 0.2],    # 5 cm under the ceiling: held
+                          [0.3, 1.50, 0.2],    # mid-room: free
+                          [2.45, 1.0, 0.5],    # 5 cm off the wall x = 2.5: held
+                          [9.0, 2.98, 9.0],    # under the ceiling's plane, off its patch
+                          [-1.0, 3.25, 0.5],   # 25 cm behind the ceiling (a sunk light)
+                          [-1.0, 2.60, 0.5],   # 40 cm under it: free
+                          [-1.0, 3.60, 0.5]],  # 60 cm behind it: too far to say
+                         dtype=torch.float32)
+    prior.assign(means)
+    assert [m >= 0 for m in prior.member.tolist()] == [True, False, True, False, True, False,
+                                                       False]
+    before = means.clone()
+    prior.snap(means)
+    assert float(means[0, 1]) == pytest.approx(3.0, abs=0.02)
+    assert float(means[2, 0]) == pytest.approx(2.5, abs=0.02)
+    assert float(means[4, 1]) == pytest.approx(3.0, abs=0.02)
+    for free in (1, 3, 5, 6):
+        assert torch.equal(means[free], before[free])
+
+
+def test_flatness_is_a_held_splats_thickness_along_its_plane():
+    rng = np.random.default_rng(4)
+    planes, tau = find_planes(room_points(rng), cameras_inside(rng), rng)
+    prior = PlanePrior(planes, tau)
+    prior.assign(torch.tensor([[0.0, 2.99, 0.0]]))
+    ceiling = planes[int(prior.member[0])]
+    # a disc lying in the ceiling (thin along y) and the same disc on its edge
+    quats = torch.tensor([[1.0, 0.0, 0.0, 0.0]])
+    flat = torch.log(torch.tensor([[0.2, 0.001, 0.2]]))
+    edge = torch.log(torch.tensor([[0.2, 0.2, 0.001]]))
+    assert abs(ceiling.normal[1]) > 0.99
+    thin = float(prior.flatness(quats, flat))
+    thick = float(prior.flatness(quats, edge))
+    assert thin == pytest.approx(0.001 / tau, rel=0.05)
+    assert thick == pytest.approx(0.2 / tau, rel=0.05)
+
+
+def test_state_round_trip():
+    rng = np.random.default_rng(5)
+    planes, tau = find_planes(room_points(rng), cameras_inside(rng), rng)
+    prior = PlanePrior(planes, tau)
+    prior.assign(torch.tensor([[0.0, 2.97, 0.0], [0.0, 1.5, 0.0]]))
+    again = PlanePrior.from_state(prior.state_dict())
+    assert again.member.tolist() == prior.member.tolist()
+    assert [p.as_dict() for p in again.planes] == [p.as_dict() for p in prior.planes]
+
+
+def box_room_data(seed: int = 0):
+    """Eight 48x48 HDR views from inside a 5 x 3 x 4 m room of flat splats (textured
+    faces, so the fit has something to match), with sparse points on its faces."""
+    from gaslight_usd.cameras import PinholeCamera
+    from gaslight_usd.fit.data import FitData
+    from gaslight_usd.fit.synthetic import look_at
+    from gaslight_usd.poses.colmap import ColmapModel
+    from gaslight_usd.render import render
+    from gaslight_usd.splats import SplatScene
+
+    rng = np.random.default_rng(seed)
+    faces, rots = [], []
+    for axis in range(3):
+        for value in (ROOM_LO[axis], ROOM_HI[axis]):
+            p = rng.uniform(ROOM_LO, ROOM_HI, (700, 3))
+            p[:, axis] = value
+            faces.append(p)
+            # a disc in the face: its thin axis (local z) along the face's normal
+            q = {0: [np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0],
+                 1: [np.cos(np.pi / 4), np.sin(np.pi / 4), 0, 0], 2: [1.0, 0, 0, 0]}[axis]
+            rots.append(np.tile(q, (700, 1)))
+    pos = np.concatenate(faces)
+    n = len(pos)
+    colours = np.exp(rng.normal(-1.0, 0.6, (n, 3)))
+    scales = np.tile([0.2, 0.2, 0.004], (n, 1))
+    truth = SplatScene.from_activated(pos, colours, scales, np.full(n, 0.99),
+                                      rotations=np.concatenate(rots))
+    cams = []
+    for k in range(8):
+        a = 2 * np.pi * k / 8
+        centre = np.array([0.8 * np.sin(a), 1.4, 0.6 * np.cos(a)])
+        rot, t = look_at(centre, centre + [np.sin(a), -0.15 + 0.3 * (k % 2), np.cos(a)])
+        cams.append(PinholeCamera(48, 48, 30, 30, 24, 24, rot, t, name=f"view_{k}.jpg"))
+    images = [render(truth, c).image.numpy() for c in cams]
+    sparse = pos[rng.choice(n, 600, replace=False)]
+    model = ColmapModel(cameras=cams, points=sparse)
+    return FitData(names=[c.name[:-4] for c in cams], cameras=cams, images=images,
+                   model=model, colour_space="lin_rec709")
+
+
+def test_a_fit_keeps_its_held_splats_on_the_rooms_planes():
+    """The trainer finds the box room's faces in its initial points and ends with the
+    splats it holds on them; the same fit without the prior leaves them off."""
+    from gaslight_usd.fit import fit_splats, preset
+
+    data = box_room_data()
+    cfg = preset("fast").updated(iterations=60, densify_every=20, working_size=0,
+                                 backdrop_tiles=0, infer_power=False)
+    held = fit_splats(data, cfg, seed=0)
+    planes = held.metrics["planes"]
+    assert len(planes["planes"]) >= 4  # the walls (the views see little floor or ceiling)
+    for plane in planes["planes"]:
+        normal = np.abs(plane["normal"])
+        axis = int(np.argmax(normal))
+        assert normal[axis] > 0.999
+        along = abs(plane["offset"])
+        assert min(abs(along - abs(ROOM_LO[axis])), abs(along - ROOM_HI[axis])) < 0.01
+    assert planes["splats_held"] > 0.5 * held.scene.count
+
+    def off_faces(scene):
+        p = scene.positions.astype(np.float64)
+        d = np.concatenate([np.abs(p - ROOM_LO), np.abs(p - ROOM_HI)], axis=1).min(axis=1)
+        return np.median(d)
+
+    free = fit_splats(data, cfg.updated(plane_prior=False), seed=0)
+    assert free.metrics["planes"] is None
+    assert off_faces(held.scene) < 0.004
+    assert off_faces(held.scene) < 0.5 * off_faces(free.scene)
+
+
+def test_free_splats_near_a_plane_are_kept_in_front_of_it():
+    """A light's splats (free) are not held, but one sunk behind its ceiling, or just
+    under it, is put a little in front, where the views see it over the ceiling."""
+    from gaslight_usd.fit.planes import LIFT
+
+    rng = np.random.default_rng(6)
+    planes, tau = find_planes(room_points(rng), cameras_inside(rng), rng)
+    prior = PlanePrior(planes, tau)
+    means = torch.tensor([[0.3, 3.04, 0.2],    # 4 cm behind the ceiling: lifted
+                          [0.3, 2.998, 0.2],   # on it: lifted
+                          [0.3, 2.90, 0.2],    # 10 cm under it: left where it is
+                          [0.3, 2.95, 0.2]],   # 5 cm under it, but held (not free)
+                         dtype=torch.float32)
+    free = torch.tensor([True, True, True, False])
+    prior.assign(means, free)
+    assert prior.member.tolist()[:3] == [-1, -1, -1] and prior.member.tolist()[3] >= 0
+    assert prior.as_dict()["lights_lifted"] == 3
+    ceiling = planes[int(prior.member[3])]
+    before = means.clone()
+    prior.snap(means)
+    def signed(k):  # distance in front of the ceiling (towards the cameras)
+        return float(means[k].double().numpy() @ ceiling.normal - ceiling.offset)
+
+    for k in (0, 1):
+        assert signed(k) == pytest.approx(LIFT * tau, abs=1e-5)
+    assert torch.equal(means[2], before[2])
+    assert signed(3) == pytest.approx(0.0, abs=1e-5)
