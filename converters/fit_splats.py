@@ -11,6 +11,7 @@ from pathlib import Path
 
 from gaslight_usd.errors import InputError
 from gaslight_usd.fit import PRESETS, fit_splats, load_fit_data, preset
+from gaslight_usd.fit.presets import PLANE_PRIOR_MODES
 from gaslight_usd.kinds import Kind
 from gaslight_usd.ply import write_ply
 from gaslight_usd.provenance import tool_version
@@ -43,9 +44,9 @@ class FitOptions:
     uplift_power: bool = False
     """Leave clipped lights at the uplift's power (do not weigh them by the surfaces they
     light, :mod:`gaslight_usd.fit.power`)."""
-    no_planes: bool = False
-    """Leave the splats free of the planes the walls, floor and ceiling make
-    (:mod:`gaslight_usd.fit.planes`)."""
+    planes: str | None = None
+    """``auto``, ``on`` or ``off``: keep the splats to the walls' planes
+    (``FitConfig.plane_prior``; default: the preset's)."""
     working_size: int | None = None
     """The views' long side in the fit (default: the preset's; the bench's shortened fits)."""
     tolerance_stops: float | None = None
@@ -98,11 +99,14 @@ def fit(ctx: StageContext) -> StageResult:
     name = opts.preset
     if name not in PRESETS:
         raise InputError(f"unknown fit preset {name!r}; choose from {', '.join(PRESETS)}")
+    if opts.planes is not None and opts.planes not in PLANE_PRIOR_MODES:
+        raise InputError(f"unknown planes mode {opts.planes!r}; choose from "
+                         f"{', '.join(PLANE_PRIOR_MODES)}")
     cfg = preset(name).updated(budget=opts.budget, iterations=opts.iterations,
                                working_size=opts.working_size,
                                refine_poses=bool(opts.refine_poses),
                                infer_power=False if opts.uplift_power else None,
-                               plane_prior=False if opts.no_planes else None)
+                               plane_prior=opts.planes)
     seed = int(opts.seed if opts.seed is not None else ctx.settings.seed)
     hdr_dir, poses = ctx.input(Kind.HDR_VIEWS).path, ctx.input(Kind.POSES).path
     data = load_fit_data(hdr_dir, poses, working_size=cfg.working_size)

@@ -297,3 +297,21 @@ def test_budget_suite_refit_fits_each_budget_from_scratch():
         assert r["seconds"] > 0 and math.isnan(r["irradiance_psnr"])
     assert rows[0]["splats"] < rows[1]["splats"]
     assert "refit" in notes({"refit": True})[0] and "--refit" in notes({})[0]
+
+
+def test_wall_offset_is_the_median_distance_of_opaque_splats_near_the_walls():
+    from gaslight_usd.bench.suite_chain import wall_offset
+    from gaslight_usd.splats import SplatScene
+
+    room = {"min": [-2.5, 0.0, -2.0], "max": [2.5, 3.0, 2.0]}
+    pos = np.array([[2.45, 1.0, 0.0],    # 5 cm off the wall x = 2.5
+                    [0.0, 1.0, -1.9],    # 10 cm off z = -2
+                    [0.0, 1.0, 1.98],    # 2 cm off z = 2
+                    [0.0, 1.5, 0.0],     # mid-room: not a wall's
+                    [2.49, 1.0, 0.0],    # faint: not counted
+                    [2.0, 1.0, 1.99]])   # the backdrop's: not counted
+    opacity = np.array([0.9, 0.9, 0.9, 0.9, 0.1, 0.9])
+    n = len(pos)
+    scene = SplatScene.from_activated(pos, np.ones((n, 3)), np.full((n, 3), 0.01), opacity)
+    assert wall_offset(scene, room, backdrop=1) == pytest.approx(0.05, abs=1e-6)
+    assert np.isnan(wall_offset(scene.subset(np.array([3])), room, backdrop=0))

@@ -487,15 +487,20 @@ def test_every_preset_fits_small_lights_to_keep_their_power_in_finer_cameras():
     assert np.median(default) > 0.7 and np.sort(default)[1] > 0.6
 
 
-def test_no_planes_flag_frees_the_splats(synthetic, tmp_path):
-    """``fit --no-planes`` fits without the plane prior and says so in the PLY."""
+def test_planes_flag_picks_the_plane_prior(synthetic, tmp_path):
+    """``fit --planes`` says in the PLY what the fit used: ``auto`` holds the walls only
+    where no view clipped (the synthetic views clip nothing), ``off`` never."""
     root, _, _ = synthetic
-    for flags, name in (([], "held.ply"), (["--no-planes"], "free.ply")):
+    for flags, name in (([], "auto.ply"), (["--planes", "off"], "off.ply")):
         assert main(["fit", str(root / "hdr"), "--poses", str(root / "sparse"), "-o",
                      str(tmp_path / name), "--iterations", "20", "-q", *flags]) == 0
-    held = read_ply(tmp_path / "held.ply").metadata
-    free = read_ply(tmp_path / "free.ply").metadata
-    assert held["provenance"]["config"]["plane_prior"] is True
-    assert isinstance(held["fit_metrics"]["planes"]["planes"], list)
-    assert free["provenance"]["config"]["plane_prior"] is False
-    assert free["fit_metrics"]["planes"] is None
+    auto = read_ply(tmp_path / "auto.ply").metadata
+    off = read_ply(tmp_path / "off.ply").metadata
+    assert auto["provenance"]["config"]["plane_prior"] == "auto"
+    assert isinstance(auto["fit_metrics"]["planes"]["planes"], list)
+    assert off["provenance"]["config"]["plane_prior"] == "off"
+    assert off["fit_metrics"]["planes"] is None
+    with pytest.raises(SystemExit) as refused:  # argparse names the choices
+        main(["fit", str(root / "hdr"), "--poses", str(root / "sparse"), "-o",
+              str(tmp_path / "x.ply"), "--planes", "sideways", "-q"])
+    assert refused.value.code == 2

@@ -40,7 +40,10 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
   taken for a lit surface), and how many clipped lights away from every true one it
   raised (:func:`weighing_summary`);
 * ``one_photo_lights`` -- sunk compact lights the fit moved back along the one photo
-  that frames them and kept as lights there (:mod:`gaslight_usd.fit.sunk_lights`).
+  that frames them and kept as lights there (:mod:`gaslight_usd.fit.sunk_lights`);
+* ``planes_held``, ``wall_offset_m`` -- how many planes the fit held its splats on
+  (:mod:`gaslight_usd.fit.planes`) and how far its opaque splats near the walls lie off
+  them (median, :func:`wall_offset`).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -246,6 +249,25 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str
     return row
 
 
+WALL_NEAR_M = 0.5
+"""Opaque splats within this of a room's wall count as the wall's (:func:`wall_offset`)."""
+
+
+def wall_offset(scene: SplatScene, room: dict[str, Any], backdrop: int) -> float:
+    """Median distance (m) from the room's nearest wall of the fitted opaque splats
+    (opacity over 0.5, the backdrop's last ``backdrop`` left out) within
+    :data:`WALL_NEAR_M` of a wall (the x and z faces of the box ``room``): how far the
+    fit smears its walls (furniture near a wall counts too, a few per cent). NaN where
+    none is near."""
+    lo, hi = np.asarray(room["min"], np.float64), np.asarray(room["max"], np.float64)
+    fitted = scene.count - backdrop
+    pos = scene.positions[:fitted].astype(np.float64)[scene.opacities[:fitted] > 0.5]
+    dist = np.abs(np.concatenate([pos[:, [0, 2]] - lo[[0, 2]], pos[:, [0, 2]] - hi[[0, 2]]],
+                                 axis=1)).min(axis=1)
+    near = dist[dist < WALL_NEAR_M]
+    return round(float(np.median(near)), 4) if len(near) else float("nan")
+
+
 def weighing_summary(clipped: list[dict[str, Any]], lights: list[dict[str, Any]]
                      ) -> dict[str, Any]:
     """What the fit decided about each clipped light (``fit_metrics["clipped_lights"]``,
@@ -440,6 +462,9 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                                               scene_lights(info))
                 placement["one_photo_lights"] = int(
                     (metrics.get("surfaced_lights") or {}).get("placed_lights", 0))
+                placement["planes_held"] = len((metrics.get("planes") or {}).get("planes", []))
+                placement["wall_offset_m"] = wall_offset(scene, info["room"],
+                                                         int(metrics.get("backdrop_splats", 0)))
                 for row in probe_rows(scene, folder, scale, relight=not quick,
                                       renderer=renderer):
                     rows.append({"method": method, "setting": preset_name,

@@ -13,6 +13,8 @@ from ._points import positive_int
 
 # The names of gaslight_usd.fit.PRESETS, kept here so --help does not import torch.
 PRESET_NAMES = ("fast", "balanced", "best")
+PLANE_MODES = ("auto", "on", "off")
+"""``--planes`` (``FitConfig.plane_prior``; not imported from it: ``--help`` loads no torch)."""
 
 HELP = "fit HDR Gaussian splats to posed HDR views (writes a 3DGS PLY)"
 DESCRIPTION = """\
@@ -61,10 +63,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="leave lights every photo clipped at the uplift's guess of their "
                         "power (by default a compact one, a bulb or a small panel, is weighed "
                         "by the surfaces it lights, as the photos measured them)")
-    p.add_argument("--no-planes", action="store_true",
-                   help="do not hold the splats near the room's large planes (walls, floor, "
-                        "ceiling, found in the initial points) on them; for a set that is "
-                        "not built of planes")
+    p.add_argument("--planes", choices=PLANE_MODES, metavar="auto|on|off",
+                   help="keep the splats to the walls' planes: auto (default: where no "
+                        "view clipped, as merged brackets give), on, off")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint an interrupted fit left")
     add_common(p)
@@ -79,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     options = {"preset": args.preset, "budget": args.budget, "iterations": args.iterations,
                "device": args.device, "seed": args.seed, "resume": args.resume,
                "refine_poses": args.refine_poses, "uplift_power": args.uplift_power,
-               "no_planes": args.no_planes}
+               "planes": args.planes}
     runner = ChainRun(out.parent if str(out.parent) else Path("."),
                       settings_from(args, device=args.device, seed=args.seed),
                       default_registry(), progress_from(args))

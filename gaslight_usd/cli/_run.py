@@ -13,6 +13,7 @@ from ..pipeline import DEFAULT_TARGETS, Job, run_job, step_options
 from ..registry import default_registry
 from ._common import add_common, emit, progress_from
 from ._export import _forms
+from ._fit import PLANE_MODES
 from ._points import parse_point, positive_int
 
 HELP = "the whole chain: photos -> HDR views -> poses -> splats -> USD/EXR/PLY"
@@ -108,10 +109,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="leave lights every photo clipped at the uplift's guess of their "
                         "power (by default a compact one, a bulb or a small panel, is weighed "
                         "by the surfaces it lights, as the photos measured them)")
-    p.add_argument("--no-planes", action="store_true",
-                   help="do not hold the splats near the room's large planes (walls, floor, "
-                        "ceiling, found in the initial points) on them; for a set that is "
-                        "not built of planes")
+    p.add_argument("--planes", choices=PLANE_MODES, metavar="auto|on|off",
+                   help="keep the splats to the walls' planes: auto (default: where no "
+                        "view clipped, as merged brackets give), on, off")
     p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: where the cameras stood, at their median height, moved "
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
                     "iterations": args.iterations,
                     "seed": args.seed, "refine_poses": args.refine_poses or None,
                     "uplift_power": args.uplift_power or None,
-                    "no_planes": args.no_planes or None,
+                    "planes": args.planes,
                     "tolerance_stops": args.tolerance_stops},
             "export": {"as": list(args.export_as) if args.export_as else None,
                        "default_variant": args.default_variant},

@@ -252,9 +252,13 @@ def fill_depths(px: np.ndarray, near_uv: np.ndarray, near_depth: np.ndarray) -> 
 
 def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
                         cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
-                        rng: np.random.Generator, neighbours: int = 6
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """(n <= count, 3) points on the views' surfaces and their HDR colours (module doc)."""
+                        rng: np.random.Generator, neighbours: int | None = None,
+                        planar: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(n <= count, 3) points on the views' surfaces and their HDR colours (module doc);
+    ``planar`` off: each pixel at its 4 nearest neighbours' median depth (the fill
+    before the planes, whose geometry the handling of clipped lights was tuned on);
+    on, the 6 nearest (an affine fit needs more than 3)."""
+    neighbours = neighbours or (6 if planar else 4)
     rays_per_view, depths_per_view = [], []
     for v, cam in enumerate(cameras):
         uv, z = cam.project(points)
@@ -273,7 +277,8 @@ def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
         cam = cameras[v]
         px = rng.uniform([0, 0], [cam.width, cam.height], (n, 2))
         _, near = cKDTree(rays_per_view[v]).query(px, k=neighbours)
-        depth = fill_depths(px, rays_per_view[v][near], depths_per_view[v][near])
+        depth = (fill_depths(px, rays_per_view[v][near], depths_per_view[v][near]) if planar
+                 else np.median(depths_per_view[v][near], axis=1))
         pts.append(cam.center + depth_rays(cam, px) * depth[:, None])
         cols.append(_sample(images[v], px))
     return np.concatenate(pts), np.concatenate(cols).astype(np.float32)
@@ -283,18 +288,21 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
                    names: list[str], count: int, rng: np.random.Generator,
                    floors: list[np.ndarray | None] | None = None,
                    y_weights: np.ndarray | None = None,
-                   seeded: LightSeedPoints | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+                   seeded: LightSeedPoints | None = None, planar_fill: bool = True
+                   ) -> tuple[np.ndarray, np.ndarray, str]:
     """Points, HDR colours and how they were made.
 
     "sparse points + surface fill" when the model has points, else "plane sweep";
     either way "+ N seeded lights" with ``seeded`` (points on the compact lights the
     clipped outlines place, :mod:`.light_seeds`; only those the other points leave
-    bare, in place of the last surface-fill points). ``floors``: the views' clip floors
-    (None: every pixel measured), for the lights' colours (:func:`bright_points`);
-    ``y_weights``: the views' luminance weights (default Rec.709's), to find the lights.
+    bare, in place of the last surface-fill points). ``planar_fill``: fill pixels go on
+    their neighbours' plane (:func:`fill_depths`), else to their median depth.
+    ``floors``: the views' clip floors (None: every pixel measured), for the lights'
+    colours (:func:`bright_points`); ``y_weights``: the views' luminance weights
+    (default Rec.709's), to find the lights.
     """
     pts, cols, how = _unseeded_points(model, cameras, images, names, count, rng, floors,
-                                      y_weights)
+                                      y_weights, planar_fill)
     if seeded is not None:
         seeded = seeded.missing_from(pts)
     if seeded is not None and seeded.lights:
@@ -309,7 +317,8 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
 def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
                      images: list[np.ndarray], names: list[str], count: int,
                      rng: np.random.Generator, floors: list[np.ndarray | None] | None,
-                     y_weights: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, str]:
+                     y_weights: np.ndarray | None, planar_fill: bool = True
+                     ) -> tuple[np.ndarray, np.ndarray, str]:
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
         pts = np.asarray(model.points, np.float64)
@@ -321,7 +330,8 @@ def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
         seen = seen_by(model, names)
         fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
                                                  cameras, images,
-                                                 count - len(pts) - len(lights), rng)
+                                                 count - len(pts) - len(lights), rng,
+                                                 planar=planar_fill)
         return (np.concatenate([pts, lights, fill]),
                 np.concatenate([colours, light_colours, fill_colours]),
                 "sparse points + surface fill + light sources")

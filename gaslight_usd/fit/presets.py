@@ -75,9 +75,16 @@ class FitConfig:
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
-    plane_prior: bool = True
-    """Keep the splats near the large planes the initial points lie on (walls, floor,
-    ceiling) on those planes, and flat along them (:mod:`.planes`)."""
+    plane_prior: str = "auto"
+    """``on``: put each surface-fill pixel on its sparse neighbours' plane
+    (:func:`.init.fill_depths`) and keep the splats near the walls the initial points
+    find on those planes, flat along them (:mod:`.planes`); ``off``: neither (the
+    neighbours' median depth); ``auto``: on where no view clipped (merged brackets, true
+    HDR: every light measured). From clipped photos the lights' handling (outline seeds,
+    sunk and one-photo lights, the lit-surface test) still leans on the old fill's
+    geometry: on the chain bench's held-out ``panels:7`` a ceiling panel then read as a
+    lit patch of ceiling and kept the uplift's power, 3-4 stops short
+    (``gaslight2usd bench --suite chain``, docs/measurements.md)."""
     flatness_weight: float = 0.01
     """Weight of the held splats' thickness along their plane
     (:meth:`.planes.PlanePrior.flatness`)."""
@@ -168,6 +175,9 @@ larger sizes lost a camera, and ``fast``'s count is about what the photos as sho
 def sfm_options(name: str) -> dict[str, int]:
     """The SfM options ``run`` uses with preset ``name`` (``best``'s for an unknown one)."""
     return dict(SFM_OPTIONS.get(name, SFM_OPTIONS["best"]))
+
+
+PLANE_PRIOR_MODES = ("auto", "on", "off")
 
 
 def preset(name: str) -> FitConfig:

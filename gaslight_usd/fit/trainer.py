@@ -114,9 +114,12 @@ class Trainer:
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
         self._seeds: list[LightSeed] | None = None
-        whites = (self._view_whites(self.train) if config.plane_prior and config.clip_bounds
-                  else None)
-        self._plane_white = None if whites is None else float(np.median(whites))
+        clipped = self._view_whites(self.train)
+        self.use_planes = config.plane_prior == "on" or (config.plane_prior == "auto"
+                                                         and clipped is None)
+        """Whether the fill and the fit keep to the walls' planes (``FitConfig.plane_prior``)."""
+        self._plane_white = (None if clipped is None or not config.clip_bounds
+                             else float(np.median(clipped)))
         """Over this luminance a splat is a clipped light's, free of the planes."""
 
     # -- state -------------------------------------------------------------------
@@ -130,7 +133,8 @@ class Trainer:
         floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
                                         min(cfg.init_points, cfg.budget), rng, floors,
-                                        self.y_weights.cpu().numpy(), self._seeded_lights())
+                                        self.y_weights.cpu().numpy(), self._seeded_lights(),
+                                        planar_fill=self.use_planes)
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
@@ -138,7 +142,7 @@ class Trainer:
                                         self.device)
         self.model.antialiased = cfg.antialiased
         self.planes = None
-        if cfg.plane_prior:
+        if self.use_planes:
             centres = np.array([c.center for c in cams])
             self.planes = PlanePrior(*find_planes(pts, centres,
                                                   np.random.default_rng([self.seed, 11])),
