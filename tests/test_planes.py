@@ -171,8 +171,8 @@ def test_a_fit_keeps_its_held_splats_on_the_rooms_planes():
 
     data = box_room_data()
     cfg = preset("fast").updated(iterations=60, densify_every=20, working_size=0,
-                                 backdrop_tiles=0, infer_power=False)
-    assert cfg.plane_prior == "auto"  # the views clip nothing: on
+                                 backdrop_tiles=0, infer_power=False,
+                                 plane_prior="auto")  # the views clip nothing: on
     held = fit_splats(data, cfg, seed=0)
     planes = held.metrics["planes"]
     assert len(planes["planes"]) >= 4  # the walls (the views see little floor or ceiling)

@@ -64,8 +64,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "power (by default a compact one, a bulb or a small panel, is weighed "
                         "by the surfaces it lights, as the photos measured them)")
     p.add_argument("--planes", choices=PLANE_MODES, metavar="auto|on|off",
-                   help="keep the splats to the walls' planes: auto (default: where no "
-                        "view clipped, as merged brackets give), on, off")
+                   help="keep the splats to the walls' planes (found in the initial "
+                        "points): on, off (default), auto (on where no view clipped, as "
+                        "merged brackets give)")
     p.add_argument("--resume", action="store_true",
                    help="continue from the checkpoint an interrupted fit left")
     add_common(p)

@@ -110,8 +110,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "power (by default a compact one, a bulb or a small panel, is weighed "
                         "by the surfaces it lights, as the photos measured them)")
     p.add_argument("--planes", choices=PLANE_MODES, metavar="auto|on|off",
-                   help="keep the splats to the walls' planes: auto (default: where no "
-                        "view clipped, as merged brackets give), on, off")
+                   help="keep the splats to the walls' planes (found in the initial "
+                        "points): on, off (default), auto (on where no view clipped, as "
+                        "merged brackets give)")
     p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: where the cameras stood, at their median height, moved "

@@ -75,16 +75,19 @@ class FitConfig:
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
-    plane_prior: str = "auto"
+    plane_prior: str = "off"
     """``on``: put each surface-fill pixel on its sparse neighbours' plane
     (:func:`.init.fill_depths`) and keep the splats near the walls the initial points
     find on those planes, flat along them (:mod:`.planes`); ``off``: neither (the
     neighbours' median depth); ``auto``: on where no view clipped (merged brackets, true
-    HDR: every light measured). From clipped photos the lights' handling (outline seeds,
-    sunk and one-photo lights, the lit-surface test) still leans on the old fill's
-    geometry: on the chain bench's held-out ``panels:7`` a ceiling panel then read as a
-    lit patch of ceiling and kept the uplift's power, 3-4 stops short
-    (``gaslight2usd bench --suite chain``, docs/measurements.md)."""
+    HDR: every light measured). Off by default until it pays its way: it puts the walls
+    where they are (their splats 20x nearer), but the chain bench's probes gain only in
+    one room of five from true HDR views, its held-out views lose 0.02-0.2 stops, and from
+    clipped photos the lights' handling (outline seeds, sunk and one-photo lights, the
+    lit-surface test) still leans on the old fill's geometry (on the held-out
+    ``panels:7`` a ceiling panel read as a lit patch of ceiling and kept the uplift's
+    power, 3-4 stops short). ``gaslight2usd bench --suite chain`` (``planes_held``,
+    ``wall_offset_m``), docs/measurements.md."""
     flatness_weight: float = 0.01
     """Weight of the held splats' thickness along their plane
     (:meth:`.planes.PlanePrior.flatness`)."""
