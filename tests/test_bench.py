@@ -315,3 +315,23 @@ def test_wall_offset_is_the_median_distance_of_opaque_splats_near_the_walls():
     scene = SplatScene.from_activated(pos, np.ones((n, 3)), np.full((n, 3), 0.01), opacity)
     assert wall_offset(scene, room, backdrop=1) == pytest.approx(0.05, abs=1e-6)
     assert np.isnan(wall_offset(scene.subset(np.array([3])), room, backdrop=0))
+
+
+def test_chain_methods_with_planes_on_fit_with_the_walls_held(monkeypatch, tmp_path):
+    """``truth HDR, planes on``: the example's true HDR views fitted with ``plane_prior``
+    on (a few steps; the plumbing, not the accuracy), ``truth HDR`` without."""
+    from gaslight_usd.bench import suite_chain
+    from gaslight_usd.fit import preset
+    from gaslight_usd.locate import example_room
+
+    example = example_room()
+    if not (example / "truth").is_dir():
+        pytest.skip("the example's true HDR views are not here")
+    tiny = preset("fast").updated(iterations=6, budget=800, init_points=600,
+                                  backdrop_tiles=0, working_size=60)
+    monkeypatch.setattr(suite_chain, "preset", lambda name: tiny)
+    held = suite_chain.fitted_scene(example, "truth HDR, planes on", tmp_path / "a", "fast", 0)
+    free = suite_chain.fitted_scene(example, "truth HDR", tmp_path / "b", "fast", 0)
+    assert held[3]["planes"] is not None and len(held[3]["planes"]["planes"]) >= 2
+    assert free[3]["planes"] is None
+    assert held[2] == free[2] == 1.0  # true radiance either way
