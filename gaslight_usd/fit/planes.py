@@ -42,14 +42,12 @@ room); also the offset histogram's bin (half of it)."""
 REACH = 2.0
 """Splats up to this many inlier distances in front of a plane are put on it..."""
 REACH_BEHIND = 5.0
-"""...and up to this many behind it (where no camera can see them): a light the fit
-from photos sank behind its ceiling (a clipped panel's depth is a guess) was hidden by
-the ceiling once the ceiling was held opaque on its plane, and came out 2-4 stops off."""
+"""...and up to this many behind it, where no camera can see them (the fill's smear
+behind a wall, a window's light sunk behind it)."""
 LIFT = 0.25
-"""A free splat (a light) near a plane is kept at least this many inlier distances in
-front of it: a ceiling panel from photos, its splats 1-5 cm behind the held ceiling
-(whose plane the fill's smear puts a few centimetres off), was hidden by it, the fit
-dimmed it and its power came out 2-4 stops short."""
+"""A free splat (a clipped light's, whose depth from the photos is a guess) near a plane
+is kept at least this many inlier distances in front of it: drawn over the held wall,
+not hidden behind it."""
 MIN_POINTS_SHARE = 0.01
 """A plane holds at least this share of the initial points..."""
 PEAK_OVER_MEDIAN = 4.0
