@@ -317,6 +317,7 @@ def test_wall_offset_is_the_median_distance_of_opaque_splats_near_the_walls():
     assert np.isnan(wall_offset(scene.subset(np.array([3])), room, backdrop=0))
 
 
+@pytest.mark.slow
 def test_chain_methods_with_planes_on_fit_with_the_walls_held(monkeypatch, tmp_path):
     """``truth HDR, planes on``: the example's true HDR views fitted with ``plane_prior``
     on (a few steps; the plumbing, not the accuracy), ``truth HDR`` without."""
