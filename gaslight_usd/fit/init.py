@@ -6,14 +6,15 @@ Sparse points (given, or triangulated from the HDR views by
 more points are added where the views see surfaces: random pixels of the
 training views are pushed along their rays to the depth the sparse points that
 project nearest to them in that view imply (points the view sees: its track when
-known, else its frustum). A plane's inverse depth is an affine function of the
-pixel, so an affine fit of the neighbours' inverse depths puts a pixel between
-features on their plane, however obliquely the view sees it; where the
-neighbours do not lie on one plane (an edge, a corner) the pixel takes their
+known, else its frustum): their median depth, or, with the fit's planes on
+(``FitConfig.plane_prior``), their plane's. A plane's inverse depth is an affine
+function of the pixel, so an affine fit of the neighbours' inverse depths puts a
+pixel between features on their plane, however obliquely the view sees it; where
+the neighbours do not lie on one plane (an edge, a corner) the pixel takes their
 median depth. The pixel's HDR colour is the point's colour. The median alone
-left walls smeared about 0.1 m (median) off their planes on a generated room,
+leaves walls smeared about 0.1 m (median) off their planes on a generated room,
 and a short fit hardly moves its splats (``fast``'s position steps add up to a
-few centimetres), so the init's smear was the fit's.
+few centimetres), so the init's smear is the fit's.
 
 Plane sweep (no points at all): random pixels of random training views are
 pushed along their rays to the candidate depth (geometric steps spanning 0.05x
