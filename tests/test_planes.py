@@ -222,3 +222,19 @@ def test_free_splats_near_a_plane_are_kept_in_front_of_it():
         assert signed(k) == pytest.approx(LIFT * tau, abs=1e-5)
     assert torch.equal(means[2], before[2])
     assert signed(3) == pytest.approx(0.0, abs=1e-5)
+
+
+def test_a_wall_off_square_keeps_its_own_normal():
+    """The main directions are squared up to the first wall; a wall 3 deg off square
+    gets its own least-squares normal, not the squared-up one."""
+    rng = np.random.default_rng(7)
+    pts = room_points(rng, smear=0.01)
+    on_far_wall = np.abs(pts[:, 0] - 2.5) < 0.05
+    tilt = np.radians(3.0)  # the wall x = 2.5 turned about the vertical through z = 0
+    pts[on_far_wall, 0] = 2.5 + np.tan(tilt) * pts[on_far_wall, 2] + rng.normal(
+        0, 0.01, on_far_wall.sum())
+    planes, _ = find_planes(pts, cameras_inside(rng), rng)
+    far = [p for p in planes if p.normal[0] < -0.9]
+    assert len(far) == 1
+    truth = -np.array([np.cos(tilt), 0.0, -np.sin(tilt)])  # facing the room
+    assert np.degrees(np.arccos(min(1.0, far[0].normal @ truth))) < 0.5

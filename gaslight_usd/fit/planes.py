@@ -147,6 +147,30 @@ def _peaks(values: np.ndarray, width: float) -> list[float]:
     return [float(edges[i] + width / 2) for i in tops]
 
 
+OWN_TILT = 0.1
+"""A plane's own least-squares normal is taken where it leans at most this far (about
+6 deg) off its main direction (the main directions are squared up to the first wall's,
+so the others inherit its error)."""
+
+
+def _own_plane(points: np.ndarray, axis: np.ndarray, offset: float, tau: float
+               ) -> tuple[np.ndarray, float]:
+    """The plane near ``axis . x = offset`` refitted to its own points (least squares on
+    ever nearer ones), or the squared-up one where that leans too far."""
+    normal = axis
+    for share in (1.0, 0.5, 0.25):
+        held = points[np.abs(points @ normal - offset) < share * tau]
+        if len(held) < 3:
+            break
+        centre = held.mean(axis=0)
+        fitted = np.linalg.eigh(np.cov((held - centre).T))[1][:, 0]
+        fitted = fitted if fitted @ axis > 0 else -fitted
+        if np.linalg.norm(fitted - axis) > OWN_TILT:
+            return axis, offset
+        normal, offset = fitted, float(fitted @ centre)
+    return normal, offset
+
+
 def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generator
                 ) -> tuple[list[Plane], float]:
     """The large planes ``points`` lie on (module docstring) and the inlier distance.
@@ -167,7 +191,13 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
         for peak in _peaks(along, tau / 2):
             near = np.abs(along - peak) < tau / 2
             offset = float(along[near].mean())
-            side = np.sign(cameras @ axis - offset)
+            normal, offset = _own_plane(points, axis, offset, tau)
+            if any(abs(q.normal @ normal) > 1 - OWN_TILT ** 2 / 2
+                   and abs(np.sign(q.normal @ normal) * q.offset - offset) < tau
+                   for q in planes):
+                continue  # a wall off square crowds at two offsets: one plane
+            near = np.abs(points @ normal - offset) < tau / 2
+            side = np.sign(cameras @ normal - offset)
             front = 1.0 if (side > 0).sum() >= (side < 0).sum() else -1.0
             if (side == front).mean() < MIN_CAMERAS_IN_FRONT:
                 continue  # cameras on both sides: a slice through the room
@@ -176,10 +206,10 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
             if np.min(p_hi - p_lo) < MIN_SPAN * extent:
                 continue  # a strip (a shelf's edge, a row of points): nothing to hold
             within = np.all((points @ axes.T >= p_lo) & (points @ axes.T <= p_hi), axis=1)
-            behind = within & (front * (along - offset) < -REACH * tau)
+            behind = within & (front * (points @ normal - offset) < -REACH * tau)
             if behind.sum() > MAX_BEHIND * near.sum():
                 continue  # it would hide what the views saw behind it
-            planes.append(Plane(front * axis, front * offset, p_lo, p_hi, axes,
+            planes.append(Plane(front * normal, front * offset, p_lo, p_hi, axes,
                                 int(near.sum())))
     return planes, tau
 
