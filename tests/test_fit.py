@@ -504,3 +504,5 @@ def test_planes_flag_picks_the_plane_prior(synthetic, tmp_path):
         main(["fit", str(root / "hdr"), "--poses", str(root / "sparse"), "-o",
               str(tmp_path / "x.ply"), "--planes", "sideways", "-q"])
     assert refused.value.code == 2
+    with pytest.raises(ValueError, match="choose from auto, on, off"):  # the Python API
+        preset("fast").updated(plane_prior="sideways")

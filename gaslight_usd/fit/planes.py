@@ -56,11 +56,10 @@ MIN_SPAN = 0.15
 """...and spans at least this share of the extent both ways (a wall, not a shelf)."""
 MAX_BEHIND = 1.0
 """...and, seen from the cameras, hides no more than this many points (a share of its
-own) behind its patch. On the chain bench's rooms a wall hid at most 0.4 times its
-points (the fill's smear behind a window), a slice through the room (at a table's
-height, a lamp's) 2.5-20 times (the room above or below it); a plain ceiling or floor,
-which the sparse points barely find, 2.5-2.7 times (its fill scattered half a metre
-behind it): it is not held, as one such "floor" was a table top 0.57 m up."""
+own) behind its patch: a wall hides only the fill's smear; a slice through the room
+(at a table's height, a lamp's) hides the room above or below it. A plain ceiling or
+floor, which the sparse points barely find, has its fill scattered behind it and is
+not held either: a table top can crowd like a floor (docs/measurements.md, session 25)."""
 MIN_CAMERAS_IN_FRONT = 0.9
 """Share of the cameras on one side of a plane (a room's wall has them all inside)."""
 CANDIDATES = 512
@@ -86,6 +85,26 @@ class Plane:
                 "size": [round(float(v), 4) for v in self.hi - self.lo]}
 
 
+def _nearer_fit(points: np.ndarray, normal: np.ndarray, offset: float, tau: float,
+                max_tilt: float | None = None) -> tuple[np.ndarray, float]:
+    """The plane ``normal . x = offset`` refitted by least squares to the ``points``
+    ever nearer it (the fill's smear pulls a single fit off); where ``max_tilt`` is
+    given and the fit leans further off ``normal``, the plane as given."""
+    start = normal
+    for share in (1.0, 0.5, 0.25):
+        held = points[np.abs(points @ normal - offset) < share * tau]
+        if len(held) < 3:
+            break
+        centre = held.mean(axis=0)
+        fitted = np.linalg.eigh(np.cov((held - centre).T))[1][:, 0]
+        if max_tilt is not None:
+            fitted = fitted if fitted @ start > 0 else -fitted
+            if np.linalg.norm(fitted - start) > max_tilt:
+                return start, offset
+        normal, offset = fitted, float(fitted @ centre)
+    return normal, offset
+
+
 def _ransac_normal(points: np.ndarray, pool: np.ndarray, tau: float,
                    rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """The normal of the plane holding most of ``points[pool]`` and its inliers (bool)."""
@@ -99,14 +118,7 @@ def _ransac_normal(points: np.ndarray, pool: np.ndarray, tau: float,
     best = int(np.argmax((np.abs(scored @ normals.T - offsets) < tau).sum(axis=0)))
     inliers = np.zeros(len(points), bool)
     inliers[pool] = np.abs(points[pool] @ normals[best] - offsets[best]) < tau
-    normal, offset = normals[best], offsets[best]
-    for share in (1.0, 0.5, 0.25):  # least squares on ever nearer inliers: the smear's
-        held = points[inliers & (np.abs(points @ normal - offset) < share * tau)]
-        if len(held) < 3:
-            break
-        centre = held.mean(axis=0)
-        normal = np.linalg.eigh(np.cov((held - centre).T))[1][:, 0]
-        offset = float(normal @ centre)
+    normal, _ = _nearer_fit(points[inliers], normals[best], offsets[best], tau)
     return normal, inliers
 
 
@@ -153,24 +165,6 @@ OWN_TILT = 0.1
 so the others inherit its error)."""
 
 
-def _own_plane(points: np.ndarray, axis: np.ndarray, offset: float, tau: float
-               ) -> tuple[np.ndarray, float]:
-    """The plane near ``axis . x = offset`` refitted to its own points (least squares on
-    ever nearer ones), or the squared-up one where that leans too far."""
-    normal = axis
-    for share in (1.0, 0.5, 0.25):
-        held = points[np.abs(points @ normal - offset) < share * tau]
-        if len(held) < 3:
-            break
-        centre = held.mean(axis=0)
-        fitted = np.linalg.eigh(np.cov((held - centre).T))[1][:, 0]
-        fitted = fitted if fitted @ axis > 0 else -fitted
-        if np.linalg.norm(fitted - axis) > OWN_TILT:
-            return axis, offset
-        normal, offset = fitted, float(fitted @ centre)
-    return normal, offset
-
-
 def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generator
                 ) -> tuple[list[Plane], float]:
     """The large planes ``points`` lie on (module docstring) and the inlier distance.
@@ -191,7 +185,7 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
         for peak in _peaks(along, tau / 2):
             near = np.abs(along - peak) < tau / 2
             offset = float(along[near].mean())
-            normal, offset = _own_plane(points, axis, offset, tau)
+            normal, offset = _nearer_fit(points, axis, offset, tau, OWN_TILT)
             if any(abs(q.normal @ normal) > 1 - OWN_TILT ** 2 / 2
                    and abs(np.sign(q.normal @ normal) * q.offset - offset) < tau
                    for q in planes):

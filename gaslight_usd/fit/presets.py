@@ -15,6 +15,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
+PLANE_PRIOR_MODES = ("auto", "on", "off")
+"""``FitConfig.plane_prior``'s values."""
+
 
 @dataclass(frozen=True)
 class FitConfig:
@@ -81,13 +84,12 @@ class FitConfig:
     find on those planes, flat along them (:mod:`.planes`); ``off``: neither (the
     neighbours' median depth); ``auto``: on where no view clipped (merged brackets, true
     HDR: every light measured). Off by default until it pays its way: it puts the walls
-    where they are (their splats 20x nearer), but the chain bench's probes gain only in
-    one room of five from true HDR views, its held-out views lose 0.02-0.2 stops, and from
+    where they are, but the probes' light does not gain in most bench rooms yet, and from
     clipped photos the lights' handling (outline seeds, sunk and one-photo lights, the
-    lit-surface test) still leans on the old fill's geometry (on the held-out
-    ``panels:7`` a ceiling panel read as a lit patch of ceiling and kept the uplift's
-    power, 3-4 stops short). ``gaslight2usd bench --suite chain`` (``planes_held``,
-    ``wall_offset_m``), docs/measurements.md."""
+    lit-surface test) still leans on the old fill's geometry (a ceiling panel can read as
+    a lit patch of ceiling and keep the uplift's power). Measured by ``gaslight2usd bench
+    --suite chain --method "truth HDR, planes on" --method "recursive, planes on"``
+    (``planes_held``, ``wall_offset_m``; docs/measurements.md)."""
     flatness_weight: float = 0.01
     """Weight of the held splats' thickness along their plane
     (:meth:`.planes.PlanePrior.flatness`)."""
@@ -127,6 +129,11 @@ class FitConfig:
     ``fast`` fit covers 0.83 of its training pixels' alpha without it, 0.98 with 0.5), and
     whatever lies behind them from another viewpoint (the backdrop, splats seen from
     elsewhere) then shines through. The presets use 0.5 (measured in the README)."""
+
+    def __post_init__(self) -> None:
+        if self.plane_prior not in PLANE_PRIOR_MODES:
+            raise ValueError(f"plane_prior {self.plane_prior!r}: choose from "
+                             f"{', '.join(PLANE_PRIOR_MODES)}")
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -179,8 +186,6 @@ def sfm_options(name: str) -> dict[str, int]:
     """The SfM options ``run`` uses with preset ``name`` (``best``'s for an unknown one)."""
     return dict(SFM_OPTIONS.get(name, SFM_OPTIONS["best"]))
 
-
-PLANE_PRIOR_MODES = ("auto", "on", "off")
 
 
 def preset(name: str) -> FitConfig:

@@ -114,7 +114,7 @@ class Trainer:
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
         self._seeds: list[LightSeed] | None = None
-        clipped = self._view_whites(self.train)
+        clipped = self._view_whites(self.train) if config.plane_prior != "off" else None
         self.use_planes = config.plane_prior == "on" or (config.plane_prior == "auto"
                                                          and clipped is None)
         """Whether the fill and the fit keep to the walls' planes (``FitConfig.plane_prior``)."""
