@@ -59,6 +59,32 @@ def test_a_slice_through_the_room_is_not_a_plane():
     assert heights == pytest.approx([0.0, 3.0], abs=0.02)
 
 
+def test_a_plain_ceiling_is_held_and_a_table_top_is_not():
+    """A ceiling the points barely see (its fill scattered behind it, more than it holds)
+    is held where the walls stop at it; a table top over the floor's fill is refused,
+    the walls going on below it."""
+    rng = np.random.default_rng(7)
+    faces = []
+    for axis in (0, 2):  # four walls, floor to ceiling
+        for value in (ROOM_LO[axis], ROOM_HI[axis]):
+            p = rng.uniform(ROOM_LO, ROOM_HI, (400, 3))
+            p[:, axis] = value + rng.normal(0, 0.01, 400)
+            faces.append(p)
+    ceiling = rng.uniform(ROOM_LO, ROOM_HI, (200, 3))
+    ceiling[:, 1] = 3.0 + rng.normal(0, 0.01, 200)
+    smear = rng.uniform(ROOM_LO, ROOM_HI, (400, 3))
+    smear[:, 1] = rng.uniform(3.05, 3.5, 400)  # the fill, behind the ceiling
+    table = rng.uniform([-1.2, 0, -1.0], [1.2, 0, 1.0], (200, 3))
+    table[:, 1] = 0.6 + rng.normal(0, 0.01, 200)
+    under = rng.uniform([-1.2, 0.0, -1.0], [1.2, 0.5, 1.0], (300, 3))  # the floor's fill
+    points = np.concatenate(faces + [ceiling, smear, table, under])
+    planes, _ = find_planes(points, cameras_inside(rng), rng)
+    level = [p for p in planes if abs(p.normal[1]) > 0.99]
+    assert len(level) == 1
+    assert level[0].normal[1] < 0 and -level[0].offset == pytest.approx(3.0, abs=0.02)
+    assert len(planes) == 5
+
+
 def test_cameras_on_both_sides_make_no_plane():
     rng = np.random.default_rng(2)
     pts = rng.uniform(-1, 1, (1500, 3))
@@ -238,3 +264,65 @@ def test_a_wall_off_square_keeps_its_own_normal():
     assert len(far) == 1
     truth = -np.array([np.cos(tilt), 0.0, -np.sin(tilt)])  # facing the room
     assert np.degrees(np.arccos(min(1.0, far[0].normal @ truth))) < 0.5
+
+
+def window_wall(rng, count=600):
+    """A plane x = 2.5 (cameras at x < 2.5) held by dim wall splats with a bright
+    window patch (|y - 1.6| < 0.4, |z| < 0.45) among them: points, luminance, plane."""
+    from gaslight_usd.fit.planes import Plane
+
+    plane = Plane(np.array([-1.0, 0.0, 0.0]), -2.5, np.array([0.0, -2.0]),
+                  np.array([3.0, 2.0]), np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), count)
+    wall = np.column_stack([np.full(count, 2.5), rng.uniform(0, 3, count),
+                            rng.uniform(-2, 2, count)])
+    window = (np.abs(wall[:, 1] - 1.6) < 0.4) & (np.abs(wall[:, 2]) < 0.45)
+    return wall, np.where(window, 5.0, 0.1), plane
+
+
+def test_bright_floaters_in_front_of_a_lit_patch_belong_on_it():
+    """A window's clump floating in front of it is the window's; the same brightness
+    over plain wall, a lamp far brighter than the window, one beyond reach and one
+    inside a seeded lamp's keep-out are not."""
+    from gaslight_usd.fit.planes import FLOAT_REACH, bright_floaters
+
+    rng = np.random.default_rng(3)
+    wall, wall_lum, plane = window_wall(rng)
+    tau = 0.08
+    probe = np.array([[2.2, 1.6, 0.1],    # 0.3 m in front of the window: a floater
+                      [1.8, 1.5, -0.2],   # 0.7 m in front of it: a floater
+                      [2.2, 0.5, -1.5],   # as bright, over plain wall: not
+                      [2.2, 1.7, 0.0],    # a lamp 1000x the window: not
+                      [2.5 - (FLOAT_REACH + 1) * tau, 1.6, 0.1],  # beyond reach: not
+                      [2.1, 1.4, 0.3],    # in a seeded lamp's keep-out: not
+                      [2.2, 1.6, 0.1]])   # as dim as the wall: not
+    lum = np.array([5.5, 4.0, 5.0, 5000.0, 5.0, 5.0, 0.1])
+    points = np.concatenate([wall, probe])
+    on_plane = np.concatenate([np.zeros(len(wall), int), np.full(len(probe), -1)])
+    found = bright_floaters(points, np.concatenate([wall_lum, lum]), on_plane, [plane], tau,
+                            keep_out=[(np.array([2.05, 1.4, 0.3]), 0.04)])
+    assert found[:len(wall)].tolist() == [-1] * len(wall)  # held already
+    assert found[len(wall):].tolist() == [0, 0, -1, -1, -1, -1, -1]
+
+
+def test_floaters_brought_back_onto_their_wall():
+    """Assigned with their luminance, a held floater is snapped onto the wall and a free
+    one (a clipped light's) just in front of it; both are counted."""
+    from gaslight_usd.fit.planes import LIFT
+
+    rng = np.random.default_rng(4)
+    wall, wall_lum, plane = window_wall(rng)
+    prior = PlanePrior([plane], 0.08)
+    means = torch.tensor(np.concatenate([wall, [[2.1, 1.6, 0.1], [2.0, 1.7, -0.1]]]),
+                         dtype=torch.float32)
+    lum = torch.tensor(np.concatenate([wall_lum, [5.0, 6.0]]), dtype=torch.float32)
+    free = torch.zeros(len(means), dtype=torch.bool)
+    free[-1] = True
+    prior.assign(means, free, lum)
+    assert prior.member[-2] == 0 and prior.lifted[-1] == 0
+    assert prior.as_dict()["floaters_on_planes"] == 2
+    prior.snap(means)
+    assert float(means[-2, 0]) == pytest.approx(2.5, abs=1e-5)
+    assert float(means[-1, 0]) == pytest.approx(2.5 - LIFT * 0.08, abs=1e-5)
+    assert float(means[-1, 1]) == pytest.approx(1.7, abs=1e-6)  # along the normal only
+    restored = PlanePrior.from_state(prior.state_dict())
+    assert torch.equal(restored.floating, prior.floating)

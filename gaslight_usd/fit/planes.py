@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from scipy.spatial import cKDTree
 
 from ..render.project import quat_to_rotmat
 
@@ -50,8 +51,10 @@ is kept at least this many inlier distances in front of it: drawn over the held 
 not hidden behind it."""
 MIN_POINTS_SHARE = 0.01
 """A plane holds at least this share of the initial points..."""
-PEAK_OVER_MEDIAN = 4.0
-"""...and its offset bin this many times the median bin's count along its direction."""
+PEAK_OVER_MEDIAN = 2.5
+"""...and its offset bin this many times the median bin's count along its direction (a
+wall with a large window in it crowds 2.6-3.6 times the median bin where the room's
+furniture fills the bins between the walls: ``panels:7``'s window wall, at 4 refused)."""
 MIN_SPAN = 0.15
 """...and spans at least this share of the extent both ways (a wall, not a shelf)."""
 MAX_BEHIND = 1.0
@@ -64,6 +67,27 @@ MIN_CAMERAS_IN_FRONT = 0.9
 """Share of the cameras on one side of a plane (a room's wall has them all inside)."""
 CANDIDATES = 512
 """Three-point draws of the RANSAC that finds the main directions."""
+CAP_WALLS_BEYOND = 0.05
+"""A ceiling (or floor) refused for what it hides is held where at most this share of
+its walls' points lie beyond it (:func:`_caps`): 1.8-4.7 % at the chain bench's
+ceilings, 4.5-20 % at the table tops and shelves below them (init points, seed 0)..."""
+CAP_CROWD = 0.75
+"""...and it crowds at least this share of the most points any plane along its direction
+does (the chain bench's ceilings crowd the most; a false floor at a table top 60 %)."""
+FLOAT_REACH = 12.0
+"""A bright splat up to this many inlier distances in front of a plane (0.9 m in a
+5 x 4 x 3 m room) may be a floater of a lit patch of it (:func:`bright_floaters`)..."""
+FLOAT_BRIGHT = 4.0
+"""...when it is this many times brighter than the held splats' median..."""
+FLOAT_MATCH = 0.25
+"""...and the plane's splats under it, within :data:`FLOAT_RADIUS`, include one at least
+this share as bright (a window's own; a lamp in front of a wall is hundreds of times the
+wall behind it)."""
+FLOAT_RADIUS = 2.0
+"""Inlier distances around a floater's foot on the plane searched for its patch."""
+KEEP_OUT_SIZES = 3.0
+"""Splats within this many of a seeded compact light's sizes are that light's, never a
+floater (:mod:`.light_seeds`)."""
 
 
 @dataclass
@@ -176,7 +200,9 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
     extent = float(np.linalg.norm(hi - lo))
     tau = INLIER_SHARE * extent
     planes: list[Plane] = []
-    for axis in main_axes(points, tau, rng):
+    hiding: list[tuple[Plane, int]] = []  # refused for what they hide, and their axis
+    crowds: dict[int, _Crowds] = {}
+    for k, axis in enumerate(main_axes(points, tau, rng)):
         along = points @ axis
         other = np.eye(3)[int(np.argmin(np.abs(axis)))]  # the world axis least like it
         u = other - (other @ axis) * axis
@@ -201,11 +227,117 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
                 continue  # a strip (a shelf's edge, a row of points): nothing to hold
             within = np.all((points @ axes.T >= p_lo) & (points @ axes.T <= p_hi), axis=1)
             behind = within & (front * (points @ normal - offset) < -REACH * tau)
+            plane = Plane(front * normal, front * offset, p_lo, p_hi, axes, int(near.sum()))
+            crowds.setdefault(k, _Crowds(axis)).add(plane)
             if behind.sum() > MAX_BEHIND * near.sum():
-                continue  # it would hide what the views saw behind it
-            planes.append(Plane(front * normal, front * offset, p_lo, p_hi, axes,
-                                int(near.sum())))
-    return planes, tau
+                hiding.append((plane, k))  # it would hide what the views saw behind it
+                continue
+            planes.append(plane)
+    return planes + _caps(points, planes, hiding, crowds, tau), tau
+
+
+class _Crowds:
+    """Where the points crowd along one main direction (the planes' offsets along it)."""
+
+    def __init__(self, axis: np.ndarray):
+        self.axis = axis
+        self.offsets = np.zeros(0)
+        self.counts = np.zeros(0, int)
+
+    def add(self, plane: Plane) -> None:
+        sign = 1.0 if plane.normal @ self.axis > 0 else -1.0
+        self.offsets = np.append(self.offsets, sign * plane.offset)
+        self.counts = np.append(self.counts, plane.points)
+
+
+def _caps(points: np.ndarray, walls: list[Plane], hiding: list[tuple[Plane, int]],
+          crowds: dict[int, _Crowds], tau: float) -> list[Plane]:
+    """The ceiling (or floor) among the crowds refused for the points they hide.
+
+    The sparse points barely see a plain ceiling: its few points crowd at its height,
+    but its fill scatters up to half a metre behind it, more than it holds, so
+    :data:`MAX_BEHIND` refuses it as it refuses a table top. The walls tell the two
+    apart: they run up to the ceiling and stop there, while they go on past a table
+    top. So the outermost crowd on its side of the cameras along a direction square to
+    the walls is a plane (square to their own normals) where at
+    most :data:`CAP_WALLS_BEYOND` of the walls' points lie beyond it (by more than
+    :data:`REACH`), and it crowds at least :data:`CAP_CROWD` of the most any plane does
+    along that direction (a floor's few points under furniture crowd no more than a
+    table top, and stay unheld)."""
+    caps = []
+    for plane, k in hiding:
+        square = [w for w in walls if abs(w.normal @ plane.normal) < OWN_TILT]
+        if not square:
+            continue
+        crowd = crowds[k]
+        sign = 1.0 if plane.normal @ crowd.axis > 0 else -1.0
+        beyond = sign * crowd.offsets - plane.offset < -tau  # far side from the cameras
+        if beyond.any() or plane.points < CAP_CROWD * crowd.counts.max():
+            continue
+        # square to the walls' own normals (a ceiling's own fit leans to its smear, and
+        # the squared-up main direction inherits the first wall's error)
+        stack = np.array([w.normal for w in square])
+        _, strength, rows = np.linalg.svd(stack)
+        normal = rows[-1] if len(square) > 1 and strength[1] > 0.5 else crowd.axis
+        normal = normal * np.sign(normal @ plane.normal)
+        offset = plane.offset
+        for share in (1.0, 0.5, 0.25):
+            near = np.abs(points @ normal - offset) < share * tau
+            offset = float((points[near] @ normal).mean()) if near.sum() >= 3 else offset
+        plane = Plane(normal, offset, plane.lo, plane.hi, plane.axes, plane.points)
+        on_walls = np.zeros(len(points), bool)
+        for wall in square:
+            uv = points @ wall.axes.T
+            on_walls |= ((np.abs(points @ wall.normal - wall.offset) < tau / 2)
+                         & np.all((uv >= wall.lo) & (uv <= wall.hi), axis=1))
+        past = points[on_walls] @ plane.normal - plane.offset < -REACH * tau
+        if on_walls.any() and past.mean() <= CAP_WALLS_BEYOND:
+            caps.append(plane)
+    return caps
+
+
+def bright_floaters(points: np.ndarray, lum: np.ndarray, on_plane: np.ndarray,
+                    planes: list[Plane], tau: float,
+                    keep_out: list[tuple[np.ndarray, float]] | None = None) -> np.ndarray:
+    """Per point, the plane whose lit patch it floats in front of (-1: none).
+
+    A window's light seen by every photo against the window lies anywhere in the space
+    those photos' window cones share: a uniformly bright patch is photo-consistent at
+    any depth there, so the fit leaves clumps of it up to a metre in front of the wall.
+    The photos see them over the window, but a probe half a metre from it is inside the
+    clumps: they fog its whole view (the chain bench's ``bulb:7``, 11 splats, 10 dB at
+    that probe). Emitters lie on surfaces: a bright point (:data:`FLOAT_BRIGHT` x the
+    median of the points ``on_plane``, each one's plane index or -1) within
+    :data:`FLOAT_REACH` in front of a plane's patch, over a patch of it about as bright
+    (:data:`FLOAT_MATCH`), is taken for that patch's light. ``keep_out``: (centre,
+    size) of compact lights the photos' outlines place, whose points are never floaters.
+    """
+    out = np.full(len(points), -1)
+    held = on_plane >= 0
+    if not held.any() or not planes:
+        return out
+    cand = (~held) & (lum > FLOAT_BRIGHT * float(np.median(lum[held])))
+    for centre, size in keep_out or []:
+        cand &= np.linalg.norm(points - centre, axis=1) > KEEP_OUT_SIZES * size
+    nearest = np.full(len(points), np.inf)
+    for k, plane in enumerate(planes):
+        mine = np.flatnonzero(on_plane == k)
+        d = points @ plane.normal - plane.offset
+        uv = points @ plane.axes.T
+        inside = np.all((uv >= plane.lo) & (uv <= plane.hi), axis=1)
+        pick = np.flatnonzero(cand & inside & (d > 0) & (d <= FLOAT_REACH * tau)
+                              & (d < nearest))
+        if not len(pick) or not len(mine):
+            continue
+        near_count = min(16, len(mine))
+        dist, idx = cKDTree(uv[mine]).query(uv[pick], k=near_count,
+                                            distance_upper_bound=FLOAT_RADIUS * tau)
+        dist, idx = dist.reshape(len(pick), -1), idx.reshape(len(pick), -1)
+        under = np.where(np.isfinite(dist), lum[mine][np.minimum(idx, len(mine) - 1)], 0.0)
+        lit = under.max(axis=1) >= FLOAT_MATCH * lum[pick]
+        out[pick[lit]] = k
+        nearest[pick[lit]] = d[pick[lit]]
+    return out
 
 
 class PlanePrior:
@@ -220,15 +352,22 @@ class PlanePrior:
         self.member = torch.zeros(0, dtype=torch.long, device=device)
         self.lifted = torch.zeros(0, dtype=torch.long, device=device)
         """Each free splat's plane it is kept in front of (-1: none)."""
+        self.floating = torch.zeros(0, dtype=torch.bool, device=device)
+        """Bright floaters brought back onto their plane (:func:`bright_floaters`)."""
 
-    def assign(self, means: torch.Tensor, free: torch.Tensor | None = None) -> None:
+    def assign(self, means: torch.Tensor, free: torch.Tensor | None = None,
+               lum: torch.Tensor | None = None,
+               keep_out: list[tuple[np.ndarray, float]] | None = None) -> None:
         """Each splat's plane (-1: none): the nearest whose patch (grown by the reach)
         holds it, within :data:`REACH` in front of it or :data:`REACH_BEHIND` behind.
         Splats marked ``free`` (bool; a light's, whose depth is the lights' machinery's
         to find) are not held; those behind a plane, or less than :data:`LIFT` in
         front, are kept :data:`LIFT` in front of it (drawn over the wall, not hidden
-        behind it)."""
+        behind it). With the splats' luminance ``lum``, bright floaters in front of a lit
+        patch (:func:`bright_floaters`; ``keep_out`` its compact lights) go onto it:
+        held, or, if free, :data:`LIFT` in front of it."""
         n = means.shape[0]
+        self.floating = torch.zeros(n, dtype=torch.bool, device=means.device)
         if not self.planes:
             self.member = torch.full((n,), -1, dtype=torch.long, device=means.device)
             self.lifted = self.member.clone()
@@ -245,10 +384,17 @@ class PlanePrior:
         best = dist.argmin(axis=1)
         member = np.where(np.isfinite(dist[np.arange(n), best]), best, -1)
         lifted = np.full(n, -1)
-        if free is not None:
-            free = free.detach().cpu().numpy()
-            lifted[free] = member[free]
-            member[free] = -1
+        free = np.zeros(n, bool) if free is None else free.detach().cpu().numpy()
+        lifted[free] = member[free]
+        member[free] = -1
+        if lum is not None:
+            floats = bright_floaters(x, lum.detach().double().cpu().numpy(),
+                                     np.where(member >= 0, member, lifted), self.planes,
+                                     self.tau, keep_out)
+            on = floats >= 0
+            member[on & ~free] = floats[on & ~free]
+            lifted[on & free] = floats[on & free]
+            self.floating = torch.as_tensor(on, device=means.device)
         self.member = torch.as_tensor(member, dtype=torch.long, device=means.device)
         self.lifted = torch.as_tensor(lifted, dtype=torch.long, device=means.device)
 
@@ -258,14 +404,16 @@ class PlanePrior:
     @torch.no_grad()
     def snap(self, means: torch.Tensor) -> None:
         """Put the held splats back on their planes, and the lifted ones at least
-        :data:`LIFT` in front of theirs (in place)."""
+        :data:`LIFT` in front of theirs (floaters brought back: just that) (in place)."""
         for which, gap, at_most in ((self.member, 0.0, False), (self.lifted, LIFT, True)):
             on = which >= 0
             if not bool(on.any()):
                 continue
             n = self.normals[which[on]]
             off = (means[on] * n).sum(dim=1) - self.offsets[which[on]] - gap * self.tau
-            if at_most:
+            if at_most and len(self.floating) == len(on):
+                off = torch.where(self.floating[on], off, off.clamp(max=0.0))
+            elif at_most:
                 off = off.clamp(max=0.0)
             means[on] = means[on] - off[:, None] * n
 
@@ -283,10 +431,12 @@ class PlanePrior:
     def as_dict(self) -> dict:
         return {"planes": [p.as_dict() for p in self.planes],
                 "inlier_distance": round(float(self.tau), 5), "splats_held": self.held(),
-                "lights_lifted": int((self.lifted >= 0).sum())}
+                "lights_lifted": int((self.lifted >= 0).sum()),
+                "floaters_on_planes": int(self.floating.sum())}
 
     def state_dict(self) -> dict:
         return {"tau": self.tau, "member": self.member.cpu(), "lifted": self.lifted.cpu(),
+                "floating": self.floating.cpu(),
                 "planes": [{"normal": p.normal, "offset": p.offset, "lo": p.lo, "hi": p.hi,
                             "axes": p.axes, "points": p.points} for p in self.planes]}
 
@@ -295,4 +445,6 @@ class PlanePrior:
         prior = cls([Plane(**p) for p in state["planes"]], state["tau"], device)
         prior.member = state["member"].to(device)
         prior.lifted = state["lifted"].to(device)
+        if "floating" in state:
+            prior.floating = state["floating"].to(device)
         return prior

@@ -177,12 +177,13 @@ class Trainer:
         """Hold the splats near the planes on them (:mod:`.planes`), all but those over
         the photos' white where some photo clipped: a clipped light's depth is a guess
         the lights' machinery (seeds, sunk lights, one-photo lights) settles, so it is
-        only kept in front of the wall, not pinned among the wall's splats."""
-        free = None
-        if self._plane_white is not None:
-            lum = torch.exp(self.model.t["log_colour"].detach()) @ self.y_weights
-            free = lum > self._plane_white
-        self.planes.assign(self.model.t["means"], free)
+        only kept in front of the wall, not pinned among the wall's splats. Bright
+        floaters in front of a lit patch of a wall go onto it
+        (:func:`.planes.bright_floaters`), bar the seeded compact lights'."""
+        lum = torch.exp(self.model.t["log_colour"].detach()) @ self.y_weights
+        free = lum > self._plane_white if self._plane_white is not None else None
+        lights = [(seed.position, seed.size) for seed in self._light_seeds()]
+        self.planes.assign(self.model.t["means"], free, lum, lights)
 
     def _reset_stats(self) -> None:
         n = self.model.count
