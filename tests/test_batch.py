@@ -293,7 +293,8 @@ def test_a_rerun_skips_and_a_new_probe_reruns_only_the_hdris(tmp_path, posed_hdr
     entry = scene_entry(out, "room")
     assert [s["status"] for s in entry["stages"]] == ["done", "done", "done"]
     assert all(len(s["fingerprint"]) == 64 for s in entry["stages"])
-    assert entry["metrics"]["splats"] == 600 and entry["metrics"]["probes"] == 1
+    # the budget, less the few splats the fit's end prunes (planes on: nothing clipped)
+    assert 500 < entry["metrics"]["splats"] <= 600 and entry["metrics"]["probes"] == 1
 
     report = run_batch(load_manifest(manifest, out), out, quiet=True)  # nothing changed
     entry = scene_entry(out, "room")
@@ -363,7 +364,7 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait(timeout=60)
     finished_a = mtimes(out / "a")
-    assert read_ply(out / "a" / "splats.ply").count == 600
+    assert 500 < read_ply(out / "a" / "splats.ply").count <= 600
     # a writer SIGKILLed inside its atomic write leaves its temporary file, never the output
     writer = subprocess.Popen([sys.executable, "-c", (
         "import sys, time\nfrom gaslight_usd.atomic import atomic_path\n"
@@ -384,7 +385,7 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     assert "removed 1 temporary file(s) a killed run left: .splats.partial-" in \
         (out / "b" / "batch.log").read_text()
     for name in "ab":
-        assert read_ply(out / name / "splats.ply").count == 600
+        assert 500 < read_ply(out / name / "splats.ply").count <= 600
         assert read_image(out / name / "hdri" / "probe_000.exr").pixels.shape == (16, 32, 3)
 
 

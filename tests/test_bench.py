@@ -318,9 +318,10 @@ def test_wall_offset_is_the_median_distance_of_opaque_splats_near_the_walls():
 
 
 @pytest.mark.slow
-def test_chain_methods_with_planes_on_fit_with_the_walls_held(monkeypatch, tmp_path):
-    """``truth HDR, planes on``: the example's true HDR views fitted with ``plane_prior``
-    on (a few steps; the plumbing, not the accuracy), ``truth HDR`` without."""
+def test_chain_methods_pick_the_planes(monkeypatch, tmp_path):
+    """``truth HDR``: the example's true HDR views fitted with the default ``plane_prior``
+    (``auto``: on, they clip nothing; a few steps, the plumbing, not the accuracy),
+    ``truth HDR, planes off`` without."""
     from gaslight_usd.bench import suite_chain
     from gaslight_usd.fit import preset
     from gaslight_usd.locate import example_room
@@ -331,8 +332,8 @@ def test_chain_methods_with_planes_on_fit_with_the_walls_held(monkeypatch, tmp_p
     tiny = preset("fast").updated(iterations=6, budget=800, init_points=600,
                                   backdrop_tiles=0, working_size=60)
     monkeypatch.setattr(suite_chain, "preset", lambda name: tiny)
-    held = suite_chain.fitted_scene(example, "truth HDR, planes on", tmp_path / "a", "fast", 0)
-    free = suite_chain.fitted_scene(example, "truth HDR", tmp_path / "b", "fast", 0)
+    held = suite_chain.fitted_scene(example, "truth HDR", tmp_path / "a", "fast", 0)
+    free = suite_chain.fitted_scene(example, "truth HDR, planes off", tmp_path / "b", "fast", 0)
     assert held[3]["planes"] is not None and len(held[3]["planes"]["planes"]) >= 2
     assert free[3]["planes"] is None
     assert held[2] == free[2] == 1.0  # true radiance either way

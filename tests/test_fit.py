@@ -488,18 +488,18 @@ def test_every_preset_fits_small_lights_to_keep_their_power_in_finer_cameras():
 
 
 def test_planes_flag_picks_the_plane_prior(synthetic, tmp_path):
-    """``fit --planes`` says in the PLY what the fit used: off by default, ``auto`` holds
-    the walls where no view clipped (the synthetic views clip nothing), ``on`` always."""
+    """``fit --planes`` says in the PLY what the fit used: ``auto`` by default, which holds
+    the walls where no view clipped (the synthetic views clip nothing), ``off`` never."""
     root, _, _ = synthetic
-    for flags, name in (([], "default.ply"), (["--planes", "auto"], "auto.ply")):
+    for flags, name in (([], "default.ply"), (["--planes", "off"], "off.ply")):
         assert main(["fit", str(root / "hdr"), "--poses", str(root / "sparse"), "-o",
                      str(tmp_path / name), "--iterations", "20", "-q", *flags]) == 0
     default = read_ply(tmp_path / "default.ply").metadata
-    auto = read_ply(tmp_path / "auto.ply").metadata
-    assert default["provenance"]["config"]["plane_prior"] == "off"
-    assert default["fit_metrics"]["planes"] is None
-    assert auto["provenance"]["config"]["plane_prior"] == "auto"
-    assert isinstance(auto["fit_metrics"]["planes"]["planes"], list)
+    off = read_ply(tmp_path / "off.ply").metadata
+    assert default["provenance"]["config"]["plane_prior"] == "auto"
+    assert isinstance(default["fit_metrics"]["planes"]["planes"], list)
+    assert off["provenance"]["config"]["plane_prior"] == "off"
+    assert off["fit_metrics"]["planes"] is None
     with pytest.raises(SystemExit) as refused:  # argparse names the choices
         main(["fit", str(root / "hdr"), "--poses", str(root / "sparse"), "-o",
               str(tmp_path / "x.ply"), "--planes", "sideways", "-q"])

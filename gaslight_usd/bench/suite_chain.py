@@ -20,8 +20,9 @@ photos with the true poses (so the uplift and the fit are measured, not SfM), on
 * ``recursive + dark frames`` -- the capture the README advises: one photo per light
   re-exposed for that light (:mod:`.dark_frames`), the rest as shot; its unclipped
   light pixels are measurements, the other photos' clipped ones bounds;
-* ``truth HDR, planes on``, ``recursive, planes on`` -- those fits with the walls held on
-  their planes (``fit --planes on``).
+* ``truth HDR, planes off``, ``recursive, planes on`` -- those fits with the planes'
+  prior the other way round (``fit --planes off|on``; by default it is on where no view
+  clipped, as in the true HDR views, and off for clipped photos).
 
 Then lat-long panoramas are drawn at the scene's probes (the room's middle and
 0.5 m from its lights) and scored against the path-traced probes, in absolute
@@ -86,10 +87,11 @@ TRUTH_HDR_METHOD = "measured (the scene's true HDR views)"
 measured (:func:`gaslight_usd.lights.power_source`)."""
 SCENES = ("room", "bulb", "panels", "shade")
 METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets",
-           "recursive, uplift's power", "recursive + dark frames", "truth HDR, planes on",
+           "recursive, uplift's power", "recursive + dark frames", "truth HDR, planes off",
            "recursive, planes on")
-PLANES_ON = ", planes on"
-"""A method's suffix: the fit with ``--planes on`` (:mod:`gaslight_usd.fit.planes`)."""
+PLANES_SUFFIXES = {", planes on": "on", ", planes off": "off"}
+"""A method's suffix: the fit with ``--planes on`` or ``off`` (:mod:`gaslight_usd.fit.planes`;
+without one, the default ``auto``)."""
 TRUTH_SPACE = "lin_rec709_scene"
 CONE_MARGIN_DEG = 5.0
 MIN_CONE_DEG = 6.0
@@ -378,8 +380,10 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     """(splats, seconds, scale to absolute Rec.709 radiance, fit metrics) for a method."""
     t0 = time.perf_counter()
     info = json.loads((folder / "scene.json").read_text())
-    planes = method.endswith(PLANES_ON)
-    method = method.removesuffix(PLANES_ON)
+    planes = next((mode for suffix, mode in PLANES_SUFFIXES.items()
+                   if method.endswith(suffix)), None)
+    for suffix in PLANES_SUFFIXES:
+        method = method.removesuffix(suffix)
     if method == "truth HDR":
         hdr, scale = folder / "truth", 1.0
     elif method == "recursive + dark frames":
@@ -395,8 +399,8 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
         cfg = cfg.updated(clip_bounds=False)
     if method in ("recursive, uplift's power", "clipped photos"):
         cfg = cfg.updated(infer_power=False)  # the floor: the photos as they are
-    if planes:
-        cfg = cfg.updated(plane_prior="on")
+    if planes is not None:
+        cfg = cfg.updated(plane_prior=planes)
     data = load_fit_data(hdr, folder / "sparse" / "0", working_size=cfg.working_size)
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])

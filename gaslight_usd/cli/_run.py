@@ -110,9 +110,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "power (by default a compact one, a bulb or a small panel, is weighed "
                         "by the surfaces it lights, as the photos measured them)")
     p.add_argument("--planes", choices=PLANE_MODES, metavar="auto|on|off",
-                   help="keep the splats to the walls' planes (found in the initial "
-                        "points): on, off (default), auto (on where no view clipped, as "
-                        "merged brackets give)")
+                   help="keep the splats to the walls' and ceiling's planes (found in "
+                        "the initial points), a window's floating light back on its wall: "
+                        "auto (default: on where no view clipped, as merged brackets "
+                        "give; off for clipped photos), on, off")
     p.add_argument("--at", type=parse_point, action="append", metavar="X,Y,Z",
                    help="probe point for HDRIs, in the poses' world frame (repeatable; "
                         "default: where the cameras stood, at their median height, moved "

@@ -16,8 +16,11 @@ first in the points, squared up as a room's are (:func:`main_axes`); along each,
 the offsets where the points crowd are planes (:func:`find_planes`), if the
 cameras are all on one side, the points cover a patch both ways and the patch
 hides few points behind it. A room's walls pass; a slice through the room at a
-table's height does not (the room lies behind it), and neither, for now, does a
-plain ceiling or floor whose fill is scattered behind it (:data:`MAX_BEHIND`).
+table's height does not (the room lies behind it). A plain ceiling, whose fill is
+scattered behind it, is held where the walls stop at it (:func:`_caps`); a plain
+floor, which furniture hides from the walls' points, is not. Bright clumps the fit
+leaves floating in front of a lit patch of a plane (a window) go onto it
+(:func:`bright_floaters`).
 Sweeping a scene's main directions for planes is Gallup et al. 2007's idea; here
 it runs over the points, not pixels: pixel-wise photo-consistency on plain
 walls put only a quarter of their pixels within 6 cm (``fast``'s 120-pixel
@@ -62,7 +65,8 @@ MAX_BEHIND = 1.0
 own) behind its patch: a wall hides only the fill's smear; a slice through the room
 (at a table's height, a lamp's) hides the room above or below it. A plain ceiling or
 floor, which the sparse points barely find, has its fill scattered behind it and is
-not held either: a table top can crowd like a floor (docs/measurements.md, session 25)."""
+refused here too (a table top can crowd like a floor); :func:`_caps` takes the ceiling
+back."""
 MIN_CAMERAS_IN_FRONT = 0.9
 """Share of the cameras on one side of a plane (a room's wall has them all inside)."""
 CANDIDATES = 512

@@ -78,17 +78,19 @@ class FitConfig:
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""
-    plane_prior: str = "off"
+    plane_prior: str = "auto"
     """``on``: put each surface-fill pixel on its sparse neighbours' plane
-    (:func:`.init.fill_depths`) and keep the splats near the walls the initial points
-    find on those planes, flat along them (:mod:`.planes`); ``off``: neither (the
-    neighbours' median depth); ``auto``: on where no view clipped (merged brackets, true
-    HDR: every light measured). Off by default until it pays its way: it puts the walls
-    where they are, but the probes' light does not gain in most bench rooms yet, and from
-    clipped photos the lights' handling (outline seeds, sunk and one-photo lights, the
-    lit-surface test) still leans on the old fill's geometry (a ceiling panel can read as
-    a lit patch of ceiling and keep the uplift's power). Measured by ``gaslight2usd bench
-    --suite chain --method "truth HDR, planes on" --method "recursive, planes on"``
+    (:func:`.init.fill_depths`) and keep the splats near the walls and ceiling the
+    initial points find on those planes, flat along them, with the bright clumps floating
+    in front of a lit patch (a window) brought back onto it (:mod:`.planes`); ``off``:
+    none of it (the neighbours' median depth); ``auto`` (the default): on where no view
+    clipped (merged brackets, true HDR: every light measured), off where some did. From
+    true HDR views it lifts the probes near a window by 8-10 dB on the chain bench's
+    held-out rooms; from clipped photos the lights' handling (outline seeds, sunk and
+    one-photo lights, the lit-surface test, the weighing) still leans on the old fill's
+    geometry (a ceiling panel read as a lit patch of ceiling, a lamp weighed half a stop
+    over), so there it stays off unless asked for. Measured by ``gaslight2usd bench
+    --suite chain --method "truth HDR, planes off" --method "recursive, planes on"``
     (``planes_held``, ``wall_offset_m``; docs/measurements.md)."""
     flatness_weight: float = 0.01
     """Weight of the held splats' thickness along their plane
