@@ -44,9 +44,10 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
   raised (:func:`weighing_summary`);
 * ``one_photo_lights`` -- sunk compact lights the fit moved back along the one photo
   that frames them and kept as lights there (:mod:`gaslight_usd.fit.sunk_lights`);
-* ``planes_held``, ``wall_offset_m`` -- how many planes the fit held its splats on
-  (:mod:`gaslight_usd.fit.planes`) and how far its opaque splats near the walls lie off
-  them (median, :func:`wall_offset`).
+* ``planes_held``, ``floaters_on_planes``, ``wall_offset_m`` -- how many planes the fit
+  held its splats on (:mod:`gaslight_usd.fit.planes`), how many bright floaters it
+  brought back onto a lit patch of one (a window's), and how far its opaque splats near
+  the walls lie off them (median, :func:`wall_offset`).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -475,7 +476,9 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                                               scene_lights(info))
                 placement["one_photo_lights"] = int(
                     (metrics.get("surfaced_lights") or {}).get("placed_lights", 0))
-                placement["planes_held"] = len((metrics.get("planes") or {}).get("planes", []))
+                planes = metrics.get("planes") or {}
+                placement["planes_held"] = len(planes.get("planes", []))
+                placement["floaters_on_planes"] = int(planes.get("floaters_on_planes", 0))
                 placement["wall_offset_m"] = wall_offset(scene, info["room"],
                                                          int(metrics.get("backdrop_splats", 0)))
                 for row in probe_rows(scene, folder, scale, relight=not quick,

@@ -91,7 +91,7 @@ class FitConfig:
     geometry (a ceiling panel read as a lit patch of ceiling, a lamp weighed half a stop
     over), so there it stays off unless asked for. Measured by ``gaslight2usd bench
     --suite chain --method "truth HDR, planes off" --method "recursive, planes on"``
-    (``planes_held``, ``wall_offset_m``; docs/measurements.md)."""
+    (``planes_held``, ``floaters_on_planes``, ``wall_offset_m``; docs/measurements.md)."""
     flatness_weight: float = 0.01
     """Weight of the held splats' thickness along their plane
     (:meth:`.planes.PlanePrior.flatness`)."""
