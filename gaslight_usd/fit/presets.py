@@ -85,11 +85,11 @@ class FitConfig:
     in front of a lit patch (a window) brought back onto it (:mod:`.planes`); ``off``:
     none of it (the neighbours' median depth); ``auto`` (the default): on where no view
     clipped (merged brackets, true HDR: every light measured), off where some did. From
-    true HDR views it lifts the probes near a window by 8-10 dB on the chain bench's
-    held-out rooms; from clipped photos the lights' handling (outline seeds, sunk and
+    true HDR views it lifts the probes near a window most on the chain bench's held-out
+    rooms; from clipped photos the lights' handling (outline seeds, sunk and
     one-photo lights, the lit-surface test, the weighing) still leans on the old fill's
-    geometry (a ceiling panel read as a lit patch of ceiling, a lamp weighed half a stop
-    over), so there it stays off unless asked for. Measured by ``gaslight2usd bench
+    geometry (a ceiling panel read as a lit patch of ceiling, a lamp weighed over), so
+    there it stays off unless asked for. Measured by ``gaslight2usd bench
     --suite chain --method "truth HDR, planes off" --method "recursive, planes on"``
     (``planes_held``, ``floaters_on_planes``, ``wall_offset_m``; docs/measurements.md)."""
     flatness_weight: float = 0.01
