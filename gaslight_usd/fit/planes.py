@@ -309,12 +309,13 @@ def bright_floaters(points: np.ndarray, lum: np.ndarray, on_plane: np.ndarray,
     those photos' window cones share: a uniformly bright patch is photo-consistent at
     any depth there, so the fit leaves clumps of it up to a metre in front of the wall.
     The photos see them over the window, but a probe half a metre from it is inside the
-    clumps: they fog its whole view (the chain bench's ``bulb:7``, 11 splats, 10 dB at
-    that probe). Emitters lie on surfaces: a bright point (:data:`FLOAT_BRIGHT` x the
-    median of the points ``on_plane``, each one's plane index or -1) within
-    :data:`FLOAT_REACH` in front of a plane's patch, over a patch of it about as bright
-    (:data:`FLOAT_MATCH`), is taken for that patch's light. ``keep_out``: (centre,
-    size) of compact lights the photos' outlines place, whose points are never floaters.
+    clumps: they fog its whole view (a dozen splats on the chain bench's ``bulb:7``;
+    docs/measurements.md, session 26). Emitters lie on surfaces: a bright point
+    (:data:`FLOAT_BRIGHT` x the median of the points ``on_plane``, each one's plane index
+    or -1) within :data:`FLOAT_REACH` in front of a plane's patch, over a patch of it
+    about as bright (:data:`FLOAT_MATCH`), is taken for that patch's light. ``keep_out``:
+    (centre, size) of compact lights the photos' outlines place, whose points are never
+    floaters.
     """
     out = np.full(len(points), -1)
     held = on_plane >= 0
