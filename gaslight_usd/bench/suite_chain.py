@@ -47,7 +47,10 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``planes_held``, ``floaters_on_planes``, ``wall_offset_m`` -- how many planes the fit
   held its splats on (:mod:`gaslight_usd.fit.planes`), how many bright floaters it
   brought back onto a lit patch of one (a window's), and how far its opaque splats near
-  the walls lie off them (median, :func:`wall_offset`).
+  the walls lie off them (median, :func:`wall_offset`);
+* ``fill_err_<light>``, ``fill_spread_<light>``, ``fill_views_<light>`` -- the uplift's
+  own error for each light before any fitting, median and spread over the views that
+  clipped it (:mod:`.uplift_fill`; methods that uplift photos only).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
 irradiance PSNR against its chain seconds (uplift + fit).
@@ -74,6 +77,7 @@ from ..imageio import read_image
 from ..locate import example_room, find_data
 from ..render.envmap import render_latlong
 from ..splats import SplatScene
+from .uplift_fill import fill_errors
 
 NAME = "chain"
 DESCRIPTION = "the light from the photos: probe errors per uplift method vs the true-HDR ceiling"
@@ -406,11 +410,15 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])
     result = fit_splats(data, cfg, seed=seed, progress=progress)
+    seconds = time.perf_counter() - t0
+    metrics = dict(result.metrics)
     if method == "truth HDR":
         # true radiance, as merged brackets measure it: the lights finder's clipped-source
         # headroom (power unknown, 7 stops) would let the lamp explain the window away
         result.scene.metadata["hdr_method"] = TRUTH_HDR_METHOD
-    return result.scene, time.perf_counter() - t0, scale, result.metrics
+    else:
+        metrics["uplift_fill"] = fill_errors(folder, hdr, scene_lights(info), scale)
+    return result.scene, seconds, scale, metrics
 
 
 def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
@@ -481,6 +489,7 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                 placement["floaters_on_planes"] = int(planes.get("floaters_on_planes", 0))
                 placement["wall_offset_m"] = wall_offset(scene, info["room"],
                                                          int(metrics.get("backdrop_splats", 0)))
+                placement |= metrics.get("uplift_fill", {})
                 for row in probe_rows(scene, folder, scale, relight=not quick,
                                       renderer=renderer):
                     rows.append({"method": method, "setting": preset_name,

@@ -1,0 +1,51 @@
+"""The uplift's own error per light, view by view (gaslight_usd.bench.uplift_fill)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from conftest import needs_example
+
+from gaslight_usd.bench.uplift_fill import fill_errors, view_fill_errors
+
+
+def test_a_fill_twice_the_truth_where_the_light_shows_is_one_stop_over():
+    truth = np.full((8, 8), 0.5)
+    truth[2:4, 2:4] = 40.0  # the light
+    truth[5, 5] = 30.0  # its blurred edge: 3/4 of it, still shown
+    floor = np.zeros((8, 8))
+    floor[1:6, 1:6] = 1.0  # the photo clipped it and a lit patch around it
+    fill = truth * 2.0
+    fill[1, 1] = 1000.0  # a clipped pixel that does not show the light: not counted
+    everywhere = np.ones((8, 8), bool)
+    levels = {"lamp": 40.0, "window": 5000.0}
+    errors = view_fill_errors(fill, floor, truth, levels, {"lamp": everywhere,
+                                                           "window": everywhere})
+    assert errors == {"lamp": 1.0}
+    off = {"lamp": np.zeros((8, 8), bool), "window": everywhere}
+    assert view_fill_errors(fill, floor, truth, levels, off) == {}  # not on its outline
+    assert view_fill_errors(fill, np.zeros((8, 8)), truth, levels,
+                            {"lamp": everywhere, "window": everywhere}) == {}
+
+
+@needs_example
+def test_the_examples_lamp_is_filled_stops_short_and_its_window_near(tmp_path):
+    """The recursive uplift leaves the example's clipped bulb many stops short (the fit's
+    weighing is there for that) and fills its window within about a stop."""
+    from gaslight_usd.bench.suite_chain import absolute_scale, scene_lights
+    from gaslight_usd.cli.main import main
+    from gaslight_usd.imageio import read_image
+    from gaslight_usd.locate import example_room
+
+    example = example_room()
+    assert main(["hdr", str(example / "photos"), "-o", str(tmp_path / "hdr"), "-q"]) == 0
+    info = json.loads((example / "scene.json").read_text())
+    first = read_image(sorted((tmp_path / "hdr").glob("*.exr"))[0])
+    scale = absolute_scale(first.metadata, info["exposure"])
+    out = fill_errors(example, tmp_path / "hdr", scene_lights(info), scale)
+    assert out["fill_views_lamp"] >= 3 and out["fill_views_window"] >= 3
+    assert out["fill_err_lamp"] < -3.0
+    assert abs(out["fill_err_window"]) < 1.5
+    assert out["fill_spread_window"] >= 0.0 and math.isfinite(out["fill_spread_lamp"])
