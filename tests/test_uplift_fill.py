@@ -25,7 +25,7 @@ def test_a_fill_twice_the_truth_where_the_light_shows_is_one_stop_over():
                                                            "window": everywhere})
     assert errors == {"lamp": 1.0}
     off = {"lamp": np.zeros((8, 8), bool), "window": everywhere}
-    assert view_fill_errors(fill, floor, truth, levels, off) == {}  # not on its outline
+    assert view_fill_errors(fill, floor, truth, levels, off) == {}  # not in its footprint
     assert view_fill_errors(fill, np.zeros((8, 8)), truth, levels,
                             {"lamp": everywhere, "window": everywhere}) == {}
 
@@ -49,3 +49,21 @@ def test_the_examples_lamp_is_filled_stops_short_and_its_window_near(tmp_path):
     assert out["fill_err_lamp"] < -3.0
     assert abs(out["fill_err_window"]) < 1.5
     assert out["fill_spread_window"] >= 0.0 and math.isfinite(out["fill_spread_lamp"])
+
+
+def test_a_lights_footprint_is_where_the_camera_sees_it():
+    from gaslight_usd.bench.uplift_fill import light_footprint
+    from gaslight_usd.cameras import PinholeCamera
+
+    camera = PinholeCamera(64, 48, 50.0, 50.0, 32.0, 24.0, np.eye(3), np.zeros(3))
+    window = {"kind": "rectangle", "corners": [[-0.2, -0.2, 2.0], [0.2, -0.2, 2.0],
+                                               [0.2, 0.2, 2.0], [-0.2, 0.2, 2.0]]}
+    ys, xs = np.nonzero(light_footprint(window, camera, (48, 64)))
+    assert (xs.min(), xs.max(), ys.min(), ys.max()) == (27, 37, 19, 29)
+    assert len(xs) == 11 * 11  # filled, not just its edge
+    bulb = {"kind": "sphere", "center": [0.4, 0.0, 2.0], "radius": 0.02}
+    ys, xs = np.nonzero(light_footprint(bulb, camera, (96, 128)))  # a finer image
+    assert abs(xs.mean() - 84.0) <= 1.0 and abs(ys.mean() - 48.0) <= 1.0
+    assert not light_footprint({"kind": "disk"}, camera, (48, 64)).any()
+    behind = {"kind": "sphere", "center": [0.0, 0.0, -2.0], "radius": 0.5}
+    assert not light_footprint(behind, camera, (48, 64)).any()

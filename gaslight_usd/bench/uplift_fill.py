@@ -2,7 +2,7 @@
 
 The chain bench's power errors are the whole chain's: the uplift's guess for a clipped
 light, then what the fit and the lights' weighing make of it. This splits off the first
-part. In each view, the pixels that show a light (on its outline, the true radiance
+part. In each view, the pixels that show a light (inside its footprint, the true radiance
 within a factor 2 of the light's own, and clipped in the photo) are averaged in the
 uplift's HDR view and in the truth; the log2 ratio is that view's fill error for the
 light. Per light the bench reports the median over the views (``fill_err_<light>``),
@@ -27,24 +27,26 @@ from ..imageio import read_channel, read_image
 from ..poses.views import CLIP_FLOOR_CHANNEL
 
 SHOWN_SHARE = 0.5
-"""A pixel shows a light where it lies on the light's outline and its true luminance is
+"""A pixel shows a light where it lies in the light's footprint and its true luminance is
 within this share of the light's either way (a brighter light in front, a lit wall
 beside it, or a pixel half on its edge do not count)."""
 
 
-def light_outline(light: dict[str, Any], camera: PinholeCamera, shape: tuple[int, int]
+def light_footprint(light: dict[str, Any], camera: PinholeCamera, shape: tuple[int, int]
                   ) -> np.ndarray:
     """``(H, W)`` bool: the pixels a ``sphere`` or ``rectangle`` light (``scene.json``)
-    covers in ``camera``'s image of ``shape``, occlusion aside."""
+    covers in ``camera``'s image of ``shape``, occlusion aside (none for another kind)."""
     if light["kind"] == "sphere":
         dirs = np.random.default_rng(0).normal(size=(2048, 3))
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
         points = np.asarray(light["center"]) + light["radius"] * dirs
-    else:
+    elif light["kind"] == "rectangle":
         c = np.asarray(light["corners"], np.float64)
         u, v = np.meshgrid(np.linspace(0, 1, 64), np.linspace(0, 1, 64))
         points = (c[0] + u.reshape(-1, 1) * (c[1] - c[0])
                   + v.reshape(-1, 1) * (c[3] - c[0]))
+    else:
+        return np.zeros(shape, bool)
     h, w = shape
     uv, z = camera.project(points)
     x = np.floor(uv[:, 0] * w / camera.width).astype(np.int64)
@@ -56,15 +58,15 @@ def light_outline(light: dict[str, Any], camera: PinholeCamera, shape: tuple[int
 
 
 def view_fill_errors(fill: np.ndarray, floor: np.ndarray, truth: np.ndarray,
-                     levels: dict[str, float], outlines: dict[str, np.ndarray]
+                     levels: dict[str, float], footprints: dict[str, np.ndarray]
                      ) -> dict[str, float]:
-    """One view: per light (``levels``: its true luminance; ``outlines``: its pixels), the
+    """One view: per light (``levels``: its true luminance; ``footprints``: its pixels), the
     log2 ratio of the fill's mean to the truth's over the clipped pixels that show it;
     lights it does not show clipped are left out. ``fill`` and ``truth`` are luminance
     ``(H, W)`` in the same units, ``floor`` the view's clip floor."""
     out = {}
     for name, level in levels.items():
-        shown = (outlines[name] & (floor > 0) & (truth >= SHOWN_SHARE * level)
+        shown = (footprints[name] & (floor > 0) & (truth >= SHOWN_SHARE * level)
                  & (truth <= level / SHOWN_SHARE))
         if shown.any():
             out[name] = float(np.log2(max(fill[shown].mean(), 1e-12) / truth[shown].mean()))
@@ -94,9 +96,9 @@ def fill_errors(folder: Path, hdr: Path, lights: list[dict[str, Any]], scale: fl
                                cam["fy"], cam["cx"], cam["cy"],
                                quaternion_to_matrix(np.asarray(view["qvec"])),
                                np.asarray(view["tvec"], np.float64))
-        outlines = {light["name"]: light_outline(light, camera, truth.shape)
-                    for light in lights}
-        for name, err in view_fill_errors(fill, floor, truth, levels, outlines).items():
+        footprints = {light["name"]: light_footprint(light, camera, truth.shape)
+                      for light in lights}
+        for name, err in view_fill_errors(fill, floor, truth, levels, footprints).items():
             errors[name].append(err)
     out: dict[str, float] = {}
     for name, errs in errors.items():
