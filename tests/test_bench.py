@@ -337,3 +337,23 @@ def test_chain_methods_pick_the_planes(monkeypatch, tmp_path):
     assert held[3]["planes"] is not None and len(held[3]["planes"]["planes"]) >= 2
     assert free[3]["planes"] is None
     assert held[2] == free[2] == 1.0  # true radiance either way
+    assert "uplift_fill" not in held[3]  # no uplift, no fill to score
+
+
+@pytest.mark.slow
+def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
+    """A method that uplifts the photos carries each light's fill error to the bench's
+    rows (a few fitting steps: the plumbing; the values are the uplift's alone)."""
+    from gaslight_usd.bench import suite_chain
+    from gaslight_usd.fit import preset
+    from gaslight_usd.locate import example_room
+
+    example = example_room()
+    if not (example / "truth").is_dir():
+        pytest.skip("the example's true HDR views are not here")
+    tiny = preset("fast").updated(iterations=6, budget=800, init_points=600,
+                                  backdrop_tiles=0, working_size=60, infer_power=False)
+    monkeypatch.setattr(suite_chain, "preset", lambda name: tiny)
+    fill = suite_chain.fitted_scene(example, "recursive", tmp_path, "fast", 0)[3]["uplift_fill"]
+    assert fill["fill_views_lamp"] >= 3 and fill["fill_err_lamp"] < -3.0
+    assert fill["fill_views_window"] >= 3 and abs(fill["fill_err_window"]) < 1.5
