@@ -21,9 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from ..cameras import PinholeCamera, quaternion_to_matrix
+from ..cameras import PinholeCamera
 from ..colour import REC709_Y
 from ..imageio import read_channel, read_image
+from ..poses import read_poses
 from ..poses.views import CLIP_FLOOR_CHANNEL
 
 SHOWN_SHARE = 0.5
@@ -77,9 +78,10 @@ def fill_errors(folder: Path, hdr: Path, lights: list[dict[str, Any]], scale: fl
                 ) -> dict[str, float]:
     """The chain bench's ``fill_err_``, ``fill_spread_`` and ``fill_views_`` columns per
     light (module docstring) for the uplift's HDR views in ``hdr`` of the scene in
-    ``folder``; ``scale`` turns the views' relative radiance into the truth's."""
+    ``folder`` (its true poses in ``sparse/0``); ``scale`` turns the views' relative
+    radiance into the truth's."""
     info = json.loads((folder / "scene.json").read_text())
-    cam = info["camera"]
+    cameras = {cam.name: cam for cam in read_poses(folder / "sparse" / "0").cameras}
     y = np.asarray(REC709_Y)
     levels = {light["name"]: float(np.asarray(light["radiance"]) @ y) for light in lights}
     errors: dict[str, list[float]] = {name: [] for name in levels}
@@ -90,12 +92,9 @@ def fill_errors(folder: Path, hdr: Path, lights: list[dict[str, Any]], scale: fl
             continue
         fill = read_image(exr).pixels @ y * scale
         truth = read_image(folder / view["truth"]).pixels @ y
-        if fill.shape != truth.shape:
+        camera = cameras.get(view["name"])
+        if camera is None or fill.shape != truth.shape:
             continue
-        camera = PinholeCamera(info["image"]["width"], info["image"]["height"], cam["fx"],
-                               cam["fy"], cam["cx"], cam["cy"],
-                               quaternion_to_matrix(np.asarray(view["qvec"])),
-                               np.asarray(view["tvec"], np.float64))
         footprints = {light["name"]: light_footprint(light, camera, truth.shape)
                       for light in lights}
         for name, err in view_fill_errors(fill, floor, truth, levels, footprints).items():
