@@ -942,8 +942,14 @@ def sha256(path: Path) -> str:
 # --------------------------------------------------------------------------- generation
 
 
-def generate(out: Path, seed: int) -> None:
-    """Render and write the whole example folder."""
+def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
+    """Render and write the whole example folder.
+
+    ``only`` names the views and probes to render (file stems: ``view_03``,
+    ``probe_1``); every pixel's samples depend on its view's index alone, so
+    each comes out as in a whole run. A partial run writes those files, the
+    poses and their digests, not ``scene.json`` (its view list would be short).
+    """
     t_start = time.perf_counter()
     variant = init_mitsuba()
     log(f"mitsuba {mi.__version__}, variant {variant}, seed {seed}, out {out}")
@@ -959,13 +965,19 @@ def generate(out: Path, seed: int) -> None:
 
     cams = camera_rig()
     fx, fy, cx, cy = intrinsics()
+    names = {f"view_{i:02d}" for i in range(len(cams))} | {
+        f"probe_{k}" for k in range(len(PROBE_POSITIONS))}
+    if only is not None and only - names:
+        raise SystemExit(f"--only: no view or probe named {', '.join(sorted(only - names))}")
     views = []
     t0 = time.perf_counter()
     for i, cam in enumerate(cams):
+        name = f"view_{i:02d}"
+        if only is not None and name not in only:
+            continue
         ti = time.perf_counter()
         radiance = renderer.pinhole(cam, i, SPP)
         exposure = exif_roundtrip(auto_exposure(radiance), out)
-        name = f"view_{i:02d}"
         note = (
             f"ground truth for photos/{name}.jpg; photo linear = radiance * ExposureTime "
             f"* K with ExposureTime={exposure!r} s, K={K_EXPOSURE}"
@@ -1011,6 +1023,8 @@ def generate(out: Path, seed: int) -> None:
     t0 = time.perf_counter()
     probes = []
     for k, pos in enumerate(PROBE_POSITIONS):
+        if only is not None and f"probe_{k}" not in only:
+            continue
         ti = time.perf_counter()
         pano = renderer.latlong(pos, k, PROBE_SPP)
         attrs = exr_attrs(f"lat-long radiance probe at {pos.tolist()} (metres, +Y up)") | {
@@ -1028,21 +1042,28 @@ def generate(out: Path, seed: int) -> None:
         "lat = pi*(0.5 - (y+0.5)/H), dir = (sin(lon)cos(lat), sin(lat), "
         "cos(lon)cos(lat)); centre column = +Z, column W/4 = +X, top row = +Y"
     )
-    write_text(
-        out / "probes" / "probes.json",
-        json.dumps(
-            {
-                "convention": latlong_doc,
-                "width": PROBE_W,
-                "height": PROBE_H,
-                "units": "metres, world frame of scene.json",
-                "probes": probes,
-            },
-            indent=2,
+    if only is None:  # a partial run's list would be short
+        write_text(
+            out / "probes" / "probes.json",
+            json.dumps(
+                {
+                    "convention": latlong_doc,
+                    "width": PROBE_W,
+                    "height": PROBE_H,
+                    "units": "metres, world frame of scene.json",
+                    "probes": probes,
+                },
+                indent=2,
+            )
+            + "\n",
         )
-        + "\n",
-    )
     write_colmap(out / "sparse" / "0", cams)
+    if only is not None:
+        files = sorted(p for p in out.rglob("*") if p.is_file() and _is_generated(out, p))
+        digests = {p.relative_to(out).as_posix(): sha256(p) for p in files}
+        write_text(out / "digests.json", json.dumps(digests, indent=2) + "\n")
+        log(f"done in {time.perf_counter() - t_start:.1f} s ({len(digests)} files, partial)")
+        return
 
     medians = np.array([v["median_luminance"] for v in views])
     scene = {
@@ -1320,10 +1341,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variant", default="room", choices=list(VARIANTS),
                     help="which room (default room: the bundled example; the others are "
                     "smaller renders of other lights and albedos for the chain bench)")
+    ap.add_argument("--only", metavar="NAMES",
+                    help="render only these views and probes (comma-separated stems, e.g. "
+                    "view_03,probe_1) with the poses, to check that they come out as "
+                    "committed; no scene.json, no --verify")
     args = ap.parse_args(argv)
     apply_variant(args.variant)
     if args.variant != "room" and args.out == ap.get_default("out"):
         ap.error("--variant needs --out (examples/room is the bundled example)")
+    if args.only:
+        if args.verify:
+            ap.error("--only renders a part of the room; --verify checks a whole one")
+        generate(args.out, args.seed, {n.strip() for n in args.only.split(",") if n.strip()})
+        return 0
     if not args.verify:
         generate(args.out, args.seed)
     return 0 if verify(args.out) else 1
