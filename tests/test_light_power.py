@@ -358,7 +358,9 @@ def test_the_examples_lamp_is_weighed_from_its_photos(tmp_path):
     example = example_room()
     lamp = np.array(json.loads((example / "scene.json").read_text())["lamp"]["center"])
     assert main(["hdr", str(example / "photos"), "-o", str(tmp_path / "hdr"), "-q"]) == 0
-    for flags, name in (([], "weighed.ply"), (["--uplift-power"], "uplift.ply")):
+    # the second fit only shows the weighing switched off: a few steps do
+    for flags, name in (([], "weighed.ply"), (["--uplift-power", "--iterations", "30"],
+                                              "uplift.ply")):
         assert main(["fit", str(tmp_path / "hdr"), "--poses", str(example / "sparse" / "0"),
                      "-o", str(tmp_path / name), "-q", *flags]) == 0
     weighed = read_ply(tmp_path / "weighed.ply").metadata["fit_metrics"]["clipped_lights"]
