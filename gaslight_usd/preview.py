@@ -79,12 +79,10 @@ def to_display(pixels: np.ndarray, space: str, config_uri: str | None = None,
 
 
 def resize_to_height(pixels: np.ndarray, height: int) -> np.ndarray:
-    """Area-filtered resize keeping the aspect (done in linear light, before display)."""
+    """Area-averaged shrink keeping the aspect (done in linear light, before display)."""
     h, w = pixels.shape[:2]
     width = max(1, round(w * height / h))
-    src = oiio.ImageBuf(np.ascontiguousarray(pixels[..., :3], dtype=np.float32))
-    small = oiio.ImageBufAlgo.resize(src, roi=oiio.ROI(0, width, 0, height, 0, 1, 0, 3))
-    return np.asarray(small.get_pixels(oiio.FLOAT), dtype=np.float32).reshape(height, width, 3)
+    return area_resize(np.ascontiguousarray(pixels[..., :3], dtype=np.float32), width, height)
 
 
 def write_png(path: str | Path, display_rgb: np.ndarray, description: str = "") -> Path:
@@ -177,12 +175,32 @@ def latlong_hdris(folder: Path) -> list[Path]:
                   if len(p.suffixes) == 1 and not p.name.startswith("."))
 
 
+def sheet_is_current(sheet: Path, files: Sequence[Path]) -> bool:
+    """Whether ``sheet`` shows exactly ``files`` (its description lists their names)
+    and was drawn after every one of them was written."""
+    try:
+        drawn = sheet.stat().st_mtime_ns
+        if any(Path(p).stat().st_mtime_ns > drawn for p in files):
+            return False
+        image = oiio.ImageInput.open(str(sheet))
+        if image is None:
+            return False
+        description = str(image.spec().getattribute("ImageDescription") or "")
+        image.close()
+    except OSError:
+        return False
+    return description.split("\n")[1:] == [Path(p).name for p in files]
+
+
 def run_contact_sheet(out_dir: Path, photos: Sequence[Path], hdr_views: Sequence[Path],
                       hdris: Sequence[Path], settings) -> Path | None:
     """``OUT/contact-sheet.png`` of a run's photos, HDR views and HDRIs (None if none)."""
     groups = [list(g) for g in (photos, hdr_views, hdris) if g]
     if not groups:
         return None
+    sheet = Path(out_dir) / CONTACT_SHEET
+    if sheet_is_current(sheet, [p for g in groups for p in g]):
+        return sheet  # a resumed run that changed nothing
     return write_contact_sheet(Path(out_dir) / CONTACT_SHEET, groups, settings.ocio_config,
                                settings.working_space, settings.input_space)
 

@@ -105,3 +105,23 @@ def test_run_writes_a_contact_sheet_of_photos_and_hdr_views(photo_folder, tmp_pa
     want = expected_codes(hdr.pixels[row, 10:14], "ACES 2.0 - SDR 100 nits (Rec.709)")
     np.testing.assert_allclose(pixels[4 + 124 + row, 4 + 10:4 + 14].astype(float), want,
                                atol=1)
+
+
+def test_a_resumed_run_redraws_the_contact_sheet_only_when_a_file_changed(photo_folder,
+                                                                          tmp_path):
+    import os
+
+    out = tmp_path / "out"
+    args = ["run", str(photo_folder), "-o", str(out), "--to", "hdr", "--method", "linear", "-q"]
+    assert main(args) == 0
+    sheet = out / "contact-sheet.png"
+    drawn = sheet.stat().st_mtime_ns
+    assert main(args) == 0
+    assert sheet.stat().st_mtime_ns == drawn  # nothing changed: not drawn again
+    view = out / "hdr" / "shot_1.exr"
+    os.utime(view, ns=(drawn + 10**9, drawn + 10**9))  # a view written after the sheet
+    assert main(args) == 0
+    assert sheet.stat().st_mtime_ns > drawn
+    names = oiio.ImageBuf(str(sheet)).spec().getattribute("ImageDescription").splitlines()
+    assert names[1:] == ["shot_0.jpg", "shot_1.jpg", "shot_2.jpg",
+                         "shot_0.exr", "shot_1.exr", "shot_2.exr"]
