@@ -53,9 +53,9 @@ def test_verify_checks_projections_and_probes():
     assert "verify: OK" in res.stdout
 
 
-PARTS = ("view_03", "view_14", "probe_1")
+PARTS = ("view_08", "view_16", "probe_1")
 """What the regeneration check renders: a level view with the lamp and the window, a
-view of the ceiling, a probe. Rendering the whole room again (``make_room.py --out
+view of the ceiling around the lamp, a probe. Rendering the whole room again (``make_room.py --out
 DIR``, about 4.5 minutes on 2 cores) is checked the same way; each view's samples
 depend on its index alone, so a part comes out as in a whole run."""
 
