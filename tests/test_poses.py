@@ -336,7 +336,8 @@ def test_triangulated_fit_start_is_the_same_every_run():
     deterministic for a seed only if they do (threaded COLMAP reorders its work)."""
     from gaslight_usd.fit.triangulate import triangulate_views
 
-    model = read_poses(EXAMPLE / "sparse" / "0")
+    full = read_poses(EXAMPLE / "sparse" / "0")
+    model = ColmapModel(cameras=full.cameras[:12])  # the level ring: enough for COLMAP's threads
     views = {n: EXAMPLE / "truth" / (Path(n).stem + ".exr") for n in model.names}
     first, second = triangulate_views(model, views), triangulate_views(model, views)
     assert first is not None and len(first.points) > 300
