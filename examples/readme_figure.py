@@ -32,7 +32,7 @@ VIEW = "view_08"
 
 
 def shown(pixels: np.ndarray, space: str, stops: float) -> np.ndarray:
-    """Display-encoded RGB, the median luminance at 0.18, then ``stops`` darker."""
+    """Display-encoded RGB: scaled so the median luminance is 0.18, then by 2 ** stops."""
     luminance = pixels[..., :3] @ np.asarray(colour.REC709_Y, np.float32)
     median = float(np.median(luminance[luminance > 0])) if np.any(luminance > 0) else 1.0
     return to_display(pixels, space, exposure_ev=float(np.log2(0.18 / median)) + stops)
