@@ -5,6 +5,7 @@ stays."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
@@ -132,6 +133,58 @@ def test_lights_inside_the_room_are_not_moved():
     out, report = _surface(hanging, cams, images)
     assert report.moved == 0 and report.refused == 0 and not report.placed
     np.testing.assert_array_equal(out.positions, hanging.positions)
+
+
+NEAR = EYE + 0.05 * (LIGHT - EYE)  # the same light drawn 0.16 m in front of the camera
+
+
+def _near_fit(near_only: bool, aim_light_from_second: bool = False):
+    """The ceiling panel's photos as above; the fit drew it just in front of the one
+    camera that frames it, 20x smaller (the same pixels in that photo)."""
+    _, cams, images = _views(aim_light_from_second)
+    fit = _with(_box(), _light(NEAR, 0.05))
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    return fit, cams, surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
+                                          near_only=near_only)
+
+
+@pytest.mark.parametrize("near_only", [False, True])
+def test_a_light_drawn_just_in_front_of_its_one_camera_is_put_on_the_ceiling(near_only):
+    fit, cams, (out, report) = _near_fit(near_only)
+    light = np.arange(fit.count - 5, fit.count)
+    assert report.moved == 5 and report.power_share > 0.99
+    moved = out.positions[light].astype(np.float64)
+    # on the ceiling: the room's boundary as its 0.2 m tiles give it, each splat on its ray
+    assert np.all(np.abs(moved[:, 1] - 3.0) < 0.12)
+    assert np.linalg.norm(moved.mean(0) - LIGHT) < 0.1
+    eye = cams[0].center
+    before, after = fit.positions[light] - eye, moved - eye
+    ratio = np.linalg.norm(after, axis=1) / np.linalg.norm(before, axis=1)
+    assert np.all(ratio > 15)  # each along its own ray, grown with the distance
+    np.testing.assert_allclose(out.scales[light] / fit.scales[light],
+                               np.repeat(ratio[:, None], 3, 1), rtol=1e-5)
+    np.testing.assert_array_equal(out.positions[: fit.count - 5], fit.positions[: fit.count - 5])
+
+
+def test_a_light_near_its_camera_whose_new_place_another_photo_saw_dark_stays():
+    fit, _, (out, report) = _near_fit(True, aim_light_from_second=True)
+    assert report.moved == 0 and report.refused == 5
+    np.testing.assert_array_equal(out.positions, fit.positions)
+
+
+def test_views_that_clipped_nothing_move_no_sunk_or_hanging_light():
+    """With nothing clipped only the floaters in front of a camera move: a light sunk
+    behind the ceiling or hanging in the room stays (those rules need a clip level)."""
+    fit, cams, images = _views()
+    hanging = _with(_box(), _light(EYE + 0.8 * (LIGHT - EYE), 0.8))
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    for scene in (fit, hanging):
+        out, report = surface_sunk_lights(scene, cams, images, whites, Y709, sightings,
+                                          near_only=True)
+        assert report.moved == 0
+        np.testing.assert_array_equal(out.positions, scene.positions)
 
 
 WINDOW = dict(x=2.5, y=(1.3, 1.9), z=(-0.4, 0.4))

@@ -40,6 +40,14 @@ draws it on the same pixels:
   stays where it is when most of its splats are refused: a lit shade hanging in front
   of a wall is seen against the wall from the side.
 
+- a bright splat of a **compact** outline at under :data:`NEAR_SHARE` of the way from
+  its photo's camera to the boundary, onto the boundary along its own ray, where every
+  photo framing the new place shows light there: a light one photo sees can be drawn by
+  small splats just in front of that camera, which no other viewpoint sees at its
+  power. This is the one rule for views that clipped nothing (merged brackets, true
+  HDR views: ``near_only``), where a light is what
+  :data:`gaslight_usd.fit.single_view.BRIGHT_RATIO` calls bright.
+
 ``gaslight2usd bench --suite chain --scene panels --scene bulb`` measures what it buys
 (the lights' power at the probes, ``light_dist_*``, ``floating_share``).
 """
@@ -197,6 +205,42 @@ def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: n
                   placed)
 
 
+NEAR_SHARE = 0.5
+"""A bright splat a compact outline holds at under this share of the distance to the
+room's boundary along its photo's ray, and framed by that photo alone, is moved onto the
+boundary (:func:`_near_floaters`)."""
+
+
+def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: np.ndarray,
+                   space: CaptureSpace, cameras: list[PinholeCamera],
+                   views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
+                   weights: np.ndarray) -> _Moves:
+    """Bright splats ``idx`` of compact outlines (``region``) lying in front of their
+    photo's camera at under :data:`NEAR_SHARE` of the way to the room's boundary, moved
+    onto it along their own rays, scales in proportion, where every photo framing the
+    new place shows light there.
+
+    A light one photo sees keeps that photo's pixels at any depth, and the fit's cheapest
+    way to draw it can be a few small splats just in front of the camera (``panels:7``'s
+    ceiling panel fitted from its true HDR views: its brightest splats 0.13 m from the
+    camera, 2.85 m short of the panel), which no probe sees at the light's power. A lamp
+    hanging in the room, more than half way to the boundary, stays; one nearer the camera
+    is moved only where no photo that frames the boundary there saw it dark.
+    """
+    if not len(idx):
+        return _Moves.none()
+    eye = eyes[region]
+    dist = np.linalg.norm(pos[idx] - eye, axis=1)
+    far = float(np.linalg.norm(space.box[1] - space.box[0]))
+    ratio, ok = _exit_along(space, eye, pos[idx], np.maximum(far / np.maximum(dist, 1e-9),
+                                                              1.0))
+    ok &= ratio * NEAR_SHARE > 1.0
+    target = eye + (pos[idx] - eye) * ratio[:, None]
+    frames, lit = _seen_lit(target, cameras, views, whites, weights)
+    go = ok & (lit.sum(axis=1) >= MIN_LIT_SHARE * frames.sum(axis=1))
+    return _Moves(idx[go], eye[go], ratio[go], int((ok & ~go).sum()))
+
+
 def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
                        eyes: np.ndarray, space: CaptureSpace, sightings: Sightings,
                        cameras: list[PinholeCamera], views: Sequence[np.ndarray | PeakMap],
@@ -234,14 +278,16 @@ def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
 
 def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
                         views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
-                        weights: np.ndarray, sightings: Sightings
+                        weights: np.ndarray, sightings: Sightings, near_only: bool = False
                         ) -> tuple[SplatScene, SurfacedLights]:
     """``scene`` with its sunk compact lights and its off-surface broad lights moved
     onto the room's boundary along the photos' rays (module docstring), and what
     moved. ``cameras``: the training views; ``views``: their photos (linear HDR, or
     their :class:`gaslight_usd.sightings.PeakMap`); ``whites`` (V,): each view's white,
     in the scene's units; ``weights``: luminance weights; ``sightings``: the views' light
-    regions (:func:`gaslight_usd.sightings.sight_lights`, same views)."""
+    regions (:func:`gaslight_usd.sightings.sight_lights`, same views); ``near_only``:
+    only the floaters in front of a camera (:func:`_near_floaters`), for views that
+    clipped nothing."""
     lum = scene.base_colours @ np.asarray(weights, np.float32)
     nothing = SurfacedLights(0, 0.0, 0.0, 0)
     bright = np.flatnonzero((lum > float(np.median(whites))) & (scene.opacities > 0.05))
@@ -266,10 +312,18 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     power = (lum * area).astype(np.float64)
     # outside as the lights finder tells backdrop (gaslight_usd.capture.backdrop_mask)
     outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
-    moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c], eyes,
-                           space, cameras, sightings),
-             _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
-                                cameras, views, np.asarray(whites, np.float64), weights)]
+    if near_only:
+        moves = [_Moves.none(), _Moves.none()]
+    else:
+        moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c],
+                               eyes, space, cameras, sightings),
+                 _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space,
+                                    sightings, cameras, views, np.asarray(whites, np.float64),
+                                    weights)]
+    taken = np.concatenate([m.idx for m in moves])
+    rest = held_c & ~np.isin(bright, taken)
+    moves.append(_near_floaters(pos, bright[rest], near_c[rest], eyes, space, cameras, views,
+                                np.asarray(whites, np.float64), weights))
     idx = np.concatenate([m.idx for m in moves])
     if not len(idx):
         return scene, SurfacedLights(0, 0.0, 0.0, sum(m.refused for m in moves))

@@ -58,7 +58,7 @@ from .planes import PlanePrior, find_planes
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
-from .single_view import single_view_lights
+from .single_view import BRIGHT_RATIO, single_view_lights
 from .sunk_lights import SurfacedLights, surface_sunk_lights
 from .triangulate import triangulate_views
 
@@ -534,17 +534,27 @@ class Trainer:
 
     def _surface_sunk_lights(self, scene: SplatScene) -> tuple[SplatScene, SurfacedLights]:
         """Compact lights one photo frames sunk behind a surface, and broad lights off
-        their wall, moved onto the room's boundary (:mod:`.sunk_lights`); only where some
-        view clipped (the photos' light regions say which splats are such lights)."""
-        whites = self._view_whites(self.train)
-        if not self.cfg.clip_bounds or whites is None:
+        their wall, moved onto the room's boundary (:mod:`.sunk_lights`) where some view
+        clipped (the photos' light regions over their white say which splats are such
+        lights); where none did (merged brackets, true HDR views), only the lights one
+        photo drew just in front of its camera."""
+        if not self.cfg.clip_bounds:
             return scene, SurfacedLights(0, 0.0, 0.0, 0)
+        weights = self.y_weights.cpu().numpy()
+        whites = self._view_whites(self.train)
+        near_only = whites is None
+        if near_only:
+            # the lights are what the single-view check calls bright: "over the white"
+            # means "clipped" to the other rules, which need a photo's clip level
+            level = float(np.median([np.median(self.data.images[i] @ weights)
+                                     for i in self.train]))
+            whites = np.full(len(self.train), BRIGHT_RATIO * level)
         cams = self.cameras()
         views = [cams[i] for i in self.train]
-        weights = self.y_weights.cpu().numpy()
         photos = [self.data.light_views()[i] for i in self.train]
         sightings = sight_lights(views, photos, whites, weights)
-        scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings)
+        scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings,
+                                              near_only=near_only)
         for light in surfaced.placed:  # indices among the training views -> all views
             light.views = [self.train[v] for v in light.views]
         if surfaced.moved:
