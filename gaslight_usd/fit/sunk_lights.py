@@ -132,6 +132,15 @@ def _exit_along(space: CaptureSpace, eye: np.ndarray, pos: np.ndarray, span: np.
     return lo, leaves
 
 
+def _boundary_along(space: CaptureSpace, eye: np.ndarray, pos: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_exit_along` with the rays followed as far as the room's box reaches, so a
+    splat in front of the boundary or behind it finds it."""
+    dist = np.linalg.norm(pos - eye, axis=1)
+    far = float(np.linalg.norm(space.box[1] - space.box[0]))
+    return _exit_along(space, eye, pos, np.maximum(far / np.maximum(dist, 1e-9), 1.0))
+
+
 def _seen_lit(points: np.ndarray, cameras: list[PinholeCamera],
               views: Sequence[np.ndarray | PeakMap], whites: np.ndarray, weights: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray]:
@@ -230,10 +239,7 @@ def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: n
     if not len(idx):
         return _Moves.none()
     eye = eyes[region]
-    dist = np.linalg.norm(pos[idx] - eye, axis=1)
-    far = float(np.linalg.norm(space.box[1] - space.box[0]))
-    ratio, ok = _exit_along(space, eye, pos[idx], np.maximum(far / np.maximum(dist, 1e-9),
-                                                              1.0))
+    ratio, ok = _boundary_along(space, eye, pos[idx])
     ok &= ratio * NEAR_SHARE > 1.0
     target = eye + (pos[idx] - eye) * ratio[:, None]
     frames, lit = _seen_lit(target, cameras, views, whites, weights)
@@ -251,11 +257,7 @@ def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
     if not len(idx):
         return _Moves.none()
     eye = eyes[region]
-    dist = np.linalg.norm(pos[idx] - eye, axis=1)
-    # followed as far as the room's box reaches, in front of the boundary or behind it
-    far = float(np.linalg.norm(space.box[1] - space.box[0]))
-    ratio, ok = _exit_along(space, eye, pos[idx], np.maximum(far / np.maximum(dist, 1e-9),
-                                                              1.0))
+    ratio, ok = _boundary_along(space, eye, pos[idx])
     ok &= np.abs(ratio - 1.0) > OFF_SURFACE_SHARE * ratio
     target = eye + (pos[idx] - eye) * ratio[:, None]
     # only where the photos that frame the new place show light there (a lit shade
