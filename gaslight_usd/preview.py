@@ -201,7 +201,7 @@ def run_contact_sheet(out_dir: Path, photos: Sequence[Path], hdr_views: Sequence
     sheet = Path(out_dir) / CONTACT_SHEET
     if sheet_is_current(sheet, [p for g in groups for p in g]):
         return sheet  # a resumed run that changed nothing
-    return write_contact_sheet(Path(out_dir) / CONTACT_SHEET, groups, settings.ocio_config,
+    return write_contact_sheet(sheet, groups, settings.ocio_config,
                                settings.working_space, settings.input_space)
 
 

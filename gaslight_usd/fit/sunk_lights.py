@@ -215,9 +215,9 @@ def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: n
 
 
 NEAR_SHARE = 0.5
-"""A bright splat a compact outline holds at under this share of the distance to the
-room's boundary along its photo's ray, and framed by that photo alone, is moved onto the
-boundary (:func:`_near_floaters`)."""
+"""A bright splat a compact outline holds at under this share of the distance from its
+photo's camera to the room's boundary along its ray is moved onto the boundary
+(:func:`_near_floaters`)."""
 
 
 def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: np.ndarray,
