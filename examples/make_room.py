@@ -950,6 +950,11 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
     each comes out as in a whole run. A partial run writes those files, the
     poses and their digests, not ``scene.json`` (its view list would be short).
     """
+    if only is not None:  # before any folder is made: a wrong name leaves nothing behind
+        names = {f"view_{i:02d}" for i in range(len(camera_rig()))} | {
+            f"probe_{k}" for k in range(len(PROBE_POSITIONS))}
+        if only - names:
+            raise SystemExit(f"--only: no view or probe named {', '.join(sorted(only - names))}")
     t_start = time.perf_counter()
     variant = init_mitsuba()
     log(f"mitsuba {mi.__version__}, variant {variant}, seed {seed}, out {out}")
@@ -965,10 +970,6 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
 
     cams = camera_rig()
     fx, fy, cx, cy = intrinsics()
-    names = {f"view_{i:02d}" for i in range(len(cams))} | {
-        f"probe_{k}" for k in range(len(PROBE_POSITIONS))}
-    if only is not None and only - names:
-        raise SystemExit(f"--only: no view or probe named {', '.join(sorted(only - names))}")
     views = []
     t0 = time.perf_counter()
     for i, cam in enumerate(cams):
@@ -1059,10 +1060,8 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
         )
     write_colmap(out / "sparse" / "0", cams)
     if only is not None:
-        files = sorted(p for p in out.rglob("*") if p.is_file() and _is_generated(out, p))
-        digests = {p.relative_to(out).as_posix(): sha256(p) for p in files}
-        write_text(out / "digests.json", json.dumps(digests, indent=2) + "\n")
-        log(f"done in {time.perf_counter() - t_start:.1f} s ({len(digests)} files, partial)")
+        count = write_digests(out)
+        log(f"done in {time.perf_counter() - t_start:.1f} s ({count} files, partial)")
         return
 
     medians = np.array([v["median_luminance"] for v in views])
@@ -1162,9 +1161,7 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
             scene["measured"].pop("lamp_to_median_ratio")
     write_text(out / "scene.json", json.dumps(scene, indent=2) + "\n")
 
-    files = sorted(p for p in out.rglob("*") if p.is_file() and _is_generated(out, p))
-    digests = {p.relative_to(out).as_posix(): sha256(p) for p in files}
-    write_text(out / "digests.json", json.dumps(digests, indent=2) + "\n")
+    count = write_digests(out)
     timings["total_s"] = time.perf_counter() - t_start
     write_text(
         out / "render_log.json",
@@ -1179,7 +1176,15 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
         )
         + "\n",
     )
-    log(f"done in {timings['total_s']:.1f} s ({len(digests)} files)")
+    log(f"done in {timings['total_s']:.1f} s ({count} files)")
+
+
+def write_digests(out: Path) -> int:
+    """``digests.json``: the SHA-256 of every generated file under ``out``; their count."""
+    files = sorted(p for p in out.rglob("*") if p.is_file() and _is_generated(out, p))
+    digests = {p.relative_to(out).as_posix(): sha256(p) for p in files}
+    write_text(out / "digests.json", json.dumps(digests, indent=2) + "\n")
+    return len(digests)
 
 
 def _is_generated(out: Path, p: Path) -> bool:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from gaslight_usd import colour
-from gaslight_usd.imageio import read_image
+from gaslight_usd.imageio import Image, read_image
 from gaslight_usd.preview import to_display
 
 EXAMPLE = Path(__file__).resolve().parent / "room"
@@ -38,7 +38,7 @@ def shown(pixels: np.ndarray, space: str, stops: float) -> np.ndarray:
     return to_display(pixels, space, exposure_ev=float(np.log2(0.18 / median)) + stops)
 
 
-def probe_point(hdri) -> tuple[float, float, float]:
+def probe_point(hdri: Image) -> tuple[float, float, float]:
     """The position an HDRI was rendered at (its ``gaslight:probePosition``)."""
     value = hdri.metadata.get("gaslight:probePosition")
     if value is None:

@@ -115,3 +115,4 @@ def test_partial_render_refuses_unknown_names(tmp_path):
                          timeout=120)
     assert res.returncode != 0
     assert "view_99" in res.stderr
+    assert not any(tmp_path.iterdir())  # refused before anything was written
