@@ -6,11 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
+from gaslight_usd.fit import preset
+from gaslight_usd.fit.data import FitData
 from gaslight_usd.fit.gather import aimed_camera
-from gaslight_usd.fit.sunk_lights import surface_sunk_lights
+from gaslight_usd.fit.model import SplatModel
+from gaslight_usd.fit.sunk_lights import RULES, surface_sunk_lights
+from gaslight_usd.fit.trainer import Trainer
+from gaslight_usd.poses.colmap import ColmapModel
 from gaslight_usd.render import render
 from gaslight_usd.sightings import sight_lights
 from gaslight_usd.splats import SplatScene
@@ -145,8 +151,9 @@ def _near_fit(near_only: bool, aim_light_from_second: bool = False):
     fit = _with(_box(), _light(NEAR, 0.05))
     whites = np.full(len(cams), WHITE)
     sightings = sight_lights(cams, images, whites, Y709)
+    rules = frozenset({"near"}) if near_only else RULES
     return fit, cams, surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
-                                          near_only=near_only)
+                                          rules=rules)
 
 
 @pytest.mark.parametrize("near_only", [False, True])
@@ -173,16 +180,16 @@ def test_a_light_near_its_camera_whose_new_place_another_photo_saw_dark_stays():
     np.testing.assert_array_equal(out.positions, fit.positions)
 
 
-def test_views_that_clipped_nothing_move_no_sunk_or_hanging_light():
-    """With nothing clipped only the floaters in front of a camera move: a light sunk
-    behind the ceiling or hanging in the room stays (those rules need a clip level)."""
+def test_the_floater_rule_alone_moves_no_sunk_or_hanging_light():
+    """The rule the fit applies midway (floaters just in front of a camera) leaves a
+    light sunk behind the ceiling or hanging in the room where it is."""
     fit, cams, images = _views()
     hanging = _with(_box(), _light(EYE + 0.8 * (LIGHT - EYE), 0.8))
     whites = np.full(len(cams), WHITE)
     sightings = sight_lights(cams, images, whites, Y709)
     for scene in (fit, hanging):
         out, report = surface_sunk_lights(scene, cams, images, whites, Y709, sightings,
-                                          near_only=True)
+                                          rules=frozenset({"near"}))
         assert report.moved == 0
         np.testing.assert_array_equal(out.positions, scene.positions)
 
@@ -268,3 +275,70 @@ def test_a_broad_light_hanging_in_the_room_is_not_pushed_onto_the_wall():
     out, report = _surface(truth, cams, images)
     assert report.moved <= 0.1 * shade.count
     np.testing.assert_allclose(np.median(out.positions[-shade.count:, 0]), -1.5, atol=0.05)
+
+
+def _slab(y: float) -> SplatScene:
+    """Dim opaque splats at height ``y`` under the panel's corner of the ceiling: the
+    fitted surface hanging short of the true ceiling where few photos see it."""
+    u, v = np.meshgrid(np.arange(0.2, 1.01, 0.1), np.arange(0.0, 0.81, 0.1))
+    slab = np.stack([u.ravel(), np.full(u.size, y), v.ravel()], 1)
+    scales = np.full((len(slab), 3), 0.06)
+    scales[:, 1] = 0.005
+    return SplatScene.from_activated(slab, np.full((len(slab), 3), 0.3), scales,
+                                     np.full(len(slab), 0.99), metadata={"antialiased": True})
+
+
+def test_a_floater_whose_boundary_hangs_short_of_the_ceiling_goes_on_to_the_light():
+    """The fit's surfaces can hang under the true ceiling where few photos see it (a dim
+    slab at 2.6 m here), and a side photo sees that place dark: the floater goes to the
+    first place farther along its ray that no photo contradicts, the panel itself."""
+    _, cams, images = _views()
+    truth = _with(_box(), _light(LIGHT))
+    cams[1] = _camera([1.6, 1.2, -0.4], LIGHT, "across")  # frames the slab and the light
+    images[1] = np.minimum(render(truth, cams[1]).image.numpy(), WHITE * 1.5)
+    fit = _with(_with(_box(), _slab(2.6)), _light(NEAR, 0.05))
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    # the boundary along the floater's rays is the slab, where the side photo saw none;
+    # the first place past it the side photo sees lit is the panel (its outline a block
+    # of the peaks' map wide, a few cm under the ceiling at most: 8 steps to the box)
+    out, report = surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
+                                      rules=frozenset({"near"}))
+    assert report.moved == 5 and report.refused == 0
+    moved = out.positions[-5:].astype(np.float64)
+    assert np.all(moved[:, 1] > 2.75)  # past the slab
+    assert np.linalg.norm(moved.mean(0) - LIGHT) < 0.2
+
+
+def test_the_fit_moves_a_floater_while_it_has_steps_to_go():
+    """The trainer moves the lights drawn in front of a camera at the end of the densify
+    window, in its own model (so the steps left can clear that photo's view of them),
+    with the moved splats' Adam moments cleared; nothing else moves."""
+    _, cams, _ = _views()
+    truth = _with(_box(), _light(LIGHT))
+    images = [render(truth, cam).image.numpy() for cam in cams]  # true HDR: nothing clipped
+    data = FitData(names=[c.name for c in cams], cameras=cams, images=images,
+                   model=ColmapModel(cameras=cams), colour_space="Linear Rec.709 (sRGB)")
+    trainer = Trainer(data, preset("fast").updated(holdout_every=0, plane_prior="off",
+                                                    init_points=200))
+    trainer._fresh()
+    fit = _with(_box(), _light(NEAR, 0.05))
+    tensors = {"means": fit.positions, "quats": fit.rotations, "log_scales": fit.log_scales,
+               "opacity_logits": fit.opacity_logits,
+               "log_colour": np.log(np.maximum(fit.base_colours, 1e-4)),
+               "sh_rel": np.zeros((fit.count, 15, 3), np.float32)}
+    trainer.model = SplatModel({k: torch.as_tensor(np.asarray(v, np.float32))
+                                for k, v in tensors.items()}, dict.fromkeys(tensors, 1e-3))
+    trainer.model.params(0).means.sum().backward()  # a step: Adam holds moments
+    trainer.model.step()
+    trainer.step = trainer._floaters_step()
+    before = trainer.model.t["means"].detach().numpy().copy()
+    assert trainer._floaters_step() == int(0.6 * trainer.cfg.iterations)
+    trainer._surface_floaters()
+    after = trainer.model.t["means"].detach().numpy()
+    light = slice(fit.count - 5, fit.count)
+    assert np.all(after[light, 1] > 2.8)  # on the ceiling, from 0.16 m in front of the camera
+    np.testing.assert_array_equal(after[: fit.count - 5], before[: fit.count - 5])
+    state = trainer.model.opt.state[trainer.model.t["means"]]
+    assert float(state["exp_avg"][light].abs().max()) == 0.0
+    assert float(state["exp_avg"][: fit.count - 5].abs().min()) > 0.0

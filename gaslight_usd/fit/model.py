@@ -98,6 +98,21 @@ class SplatModel:
             group["params"][0] = new
             self.t[name] = new
 
+    def set_rows(self, rows: torch.Tensor, values: dict[str, torch.Tensor]) -> None:
+        """Overwrite ``rows`` of the named tensors in place (a splat moved by a rule, not
+        by a gradient), their Adam moments cleared so no old momentum drags them back."""
+        for group in self.opt.param_groups:
+            name = group["name"]
+            if name not in values:
+                continue
+            leaf = group["params"][0]
+            with torch.no_grad():
+                leaf[rows] = values[name].to(leaf.dtype)
+            state = self.opt.state.get(leaf)
+            if state:
+                for key in ("exp_avg", "exp_avg_sq"):
+                    state[key][rows] = 0.0
+
     def prune(self, remove: torch.Tensor) -> None:
         self._replace(~remove, None)
 

@@ -220,6 +220,39 @@ photo's camera to the room's boundary along its ray is moved onto the boundary
 (:func:`_near_floaters`)."""
 
 
+SCAN_STEPS = 8
+"""Depths tried, from the sealed boundary out to the splats' box, for a floater whose
+place on the boundary some photo saw dark (:func:`_first_lit_along`)."""
+
+
+def _box_exit(box: np.ndarray, eye: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """(K,) the ratio along ``eye + (pos - eye) * r`` where each ray leaves ``box``
+    ((2, 3) corners), at least 1."""
+    step = pos - eye
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (box[0] - eye) / step
+        b = (box[1] - eye) / step
+    far = np.where(np.abs(step) > 1e-12, np.maximum(a, b), np.inf)
+    return np.maximum(far.min(axis=1), 1.0)
+
+
+def _first_lit_along(eye: np.ndarray, pos: np.ndarray, start: np.ndarray, stop: np.ndarray,
+                     cameras: list[PinholeCamera], views: Sequence[np.ndarray | PeakMap],
+                     whites: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The first of :data:`SCAN_STEPS` + 1 ratios from ``start`` to ``stop`` (K,) along
+    ``eye + (pos - eye) * r`` where every photo framing the place shows light there, and
+    whether there is one (K,): where the fit's surfaces hang short of the true ceiling
+    (few photos see it), the sealed boundary lies in front of a light, and photos from
+    the side see that place dark."""
+    k = len(pos)
+    ratios = start[:, None] + (stop - start)[:, None] * np.linspace(0.0, 1.0, SCAN_STEPS + 1)
+    points = eye[:, None] + (pos - eye)[:, None] * ratios[..., None]
+    frames, lit = _seen_lit(points.reshape(-1, 3), cameras, views, whites, weights)
+    good = (lit.sum(axis=1) >= MIN_LIT_SHARE * frames.sum(axis=1)).reshape(k, -1)
+    first = np.argmax(good, axis=1)
+    return ratios[np.arange(k), first], good.any(axis=1)
+
+
 def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: np.ndarray,
                    space: CaptureSpace, cameras: list[PinholeCamera],
                    views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
@@ -227,7 +260,9 @@ def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: n
     """Bright splats ``idx`` of compact outlines (``region``) lying in front of their
     photo's camera at under :data:`NEAR_SHARE` of the way to the room's boundary, moved
     onto it along their own rays, scales in proportion, where every photo framing the
-    new place shows light there.
+    new place shows light there; where some photo saw it dark, to the first place
+    farther along the ray, up to the splats' box, that no photo contradicts
+    (:func:`_first_lit_along`).
 
     A light one photo sees keeps that photo's pixels at any depth, and the fit's cheapest
     way to draw it can be a few small splats just in front of the camera (``panels:7``'s
@@ -241,9 +276,9 @@ def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: n
     eye = eyes[region]
     ratio, ok = _boundary_along(space, eye, pos[idx])
     ok &= ratio * NEAR_SHARE > 1.0
-    target = eye + (pos[idx] - eye) * ratio[:, None]
-    frames, lit = _seen_lit(target, cameras, views, whites, weights)
-    go = ok & (lit.sum(axis=1) >= MIN_LIT_SHARE * frames.sum(axis=1))
+    stop = np.maximum(_box_exit(space.box, eye, pos[idx]), ratio)
+    ratio, go = _first_lit_along(eye, pos[idx], ratio, stop, cameras, views, whites, weights)
+    go &= ok
     return _Moves(idx[go], eye[go], ratio[go], int((ok & ~go).sum()))
 
 
@@ -278,18 +313,24 @@ def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
     return _Moves(idx[go], eye[go], ratio[go], int(refused.sum()))
 
 
+RULES = frozenset({"sunk", "broad", "near"})
+"""The rules :func:`surface_sunk_lights` applies: sunk compact lights, broad lights off
+their wall, floaters just in front of a camera (the module docstring)."""
+
+
 def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
                         views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
-                        weights: np.ndarray, sightings: Sightings, near_only: bool = False
-                        ) -> tuple[SplatScene, SurfacedLights]:
+                        weights: np.ndarray, sightings: Sightings,
+                        rules: frozenset[str] = RULES) -> tuple[SplatScene, SurfacedLights]:
     """``scene`` with its sunk compact lights and its off-surface broad lights moved
     onto the room's boundary along the photos' rays (module docstring), and what
     moved. ``cameras``: the training views; ``views``: their photos (linear HDR, or
     their :class:`gaslight_usd.sightings.PeakMap`); ``whites`` (V,): each view's white,
     in the scene's units; ``weights``: luminance weights; ``sightings``: the views' light
-    regions (:func:`gaslight_usd.sightings.sight_lights`, same views); ``near_only``:
-    only the floaters in front of a camera (:func:`_near_floaters`), for views that
-    clipped nothing."""
+    regions (:func:`gaslight_usd.sightings.sight_lights`, same views); ``rules``: which
+    of :data:`RULES` to apply."""
+    if not rules <= RULES:
+        raise ValueError(f"unknown rules {sorted(rules - RULES)}; known: {sorted(RULES)}")
     lum = scene.base_colours @ np.asarray(weights, np.float32)
     nothing = SurfacedLights(0, 0.0, 0.0, 0)
     bright = np.flatnonzero((lum > float(np.median(whites))) & (scene.opacities > 0.05))
@@ -314,18 +355,17 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     power = (lum * area).astype(np.float64)
     # outside as the lights finder tells backdrop (gaslight_usd.capture.backdrop_mask)
     outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
-    if near_only:
-        moves = [_Moves.none(), _Moves.none()]
-    else:
-        moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c],
-                               eyes, space, cameras, sightings),
-                 _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space,
-                                    sightings, cameras, views, np.asarray(whites, np.float64),
-                                    weights)]
+    whites = np.asarray(whites, np.float64)
+    moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c],
+                           eyes, space, cameras, sightings)
+             if "sunk" in rules else _Moves.none(),
+             _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
+                                cameras, views, whites, weights)
+             if "broad" in rules else _Moves.none()]
     taken = np.concatenate([m.idx for m in moves])
     rest = held_c & ~np.isin(bright, taken)
     moves.append(_near_floaters(pos, bright[rest], near_c[rest], eyes, space, cameras, views,
-                                np.asarray(whites, np.float64), weights))
+                                whites, weights) if "near" in rules else _Moves.none())
     idx = np.concatenate([m.idx for m in moves])
     if not len(idx):
         return scene, SurfacedLights(0, 0.0, 0.0, sum(m.refused for m in moves))

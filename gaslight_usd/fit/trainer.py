@@ -59,7 +59,7 @@ from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
 from .single_view import BRIGHT_RATIO, single_view_lights
-from .sunk_lights import SurfacedLights, surface_sunk_lights
+from .sunk_lights import RULES, SurfacedLights, surface_sunk_lights
 from .triangulate import triangulate_views
 
 MIN_CONTRIBUTION = 0.02
@@ -361,6 +361,8 @@ class Trainer:
                     stop_reason = "target error"
                     break
                 self._densify_and_prune()
+            if self.step == self._floaters_step():
+                self._surface_floaters()
             self.progress.update(self.step, self.cfg.iterations, loss=loss,
                                  splats=self.model.count)
             if self.checkpoint is not None and self.step % self.cfg.checkpoint_every == 0:
@@ -532,20 +534,50 @@ class Trainer:
         return sight_lights(self.data.cameras, self.data.light_views(), whites,
                             self.y_weights.cpu().numpy()).as_dict()
 
-    def _surface_sunk_lights(self, scene: SplatScene) -> tuple[SplatScene, SurfacedLights]:
-        """Compact lights one photo frames sunk behind a surface, and broad lights off
-        their wall, moved onto the room's boundary (:mod:`.sunk_lights`) where some view
-        clipped (the photos' light regions over their white say which splats are such
-        lights); where none did (merged brackets, true HDR views), only the lights one
-        photo drew just in front of its camera."""
+    def _floaters_step(self) -> int:
+        """The step after which the lights drawn just in front of a camera are moved onto
+        the room's surfaces (:meth:`_surface_floaters`): the end of the densify window."""
+        return max(int(self.cfg.densify_until * self.cfg.iterations), 1)
+
+    def _surface_floaters(self) -> None:
+        """Move the lights one photo drew just in front of its camera onto the room's
+        surfaces while the fit still has steps to go.
+
+        Hidden behind such a floater, whatever lies between that camera and the light
+        was fitted blind: dim fog splats the photo never had to see through. Moved at the
+        end, the light lands behind them (``panels:7``'s ceiling panel from its true HDR
+        views: half its light lost in its own photo); moved here, the remaining steps
+        clear the photo's view of it again. The other rules run at the end
+        (:meth:`_finish`), where the lights they place are recorded."""
+        scene = self.model.to_scene(self.active_degree(), {})
+        moved, surfaced = self._surface_sunk_lights(scene, rules=frozenset({"near"}))
+        rows = np.flatnonzero(np.any(moved.positions != scene.positions, axis=1))
+        if not len(rows):
+            return
+        index = torch.as_tensor(rows, device=self.device)
+        self.model.set_rows(index, {
+            "means": torch.as_tensor(moved.positions[rows], device=self.device),
+            "log_scales": torch.as_tensor(moved.log_scales[rows], device=self.device)})
+        if self.planes is not None:  # the moved splats' planes are where they are now
+            self._assign_planes()
+
+    def _surface_sunk_lights(self, scene: SplatScene, rules: frozenset[str] | None = None
+                             ) -> tuple[SplatScene, SurfacedLights]:
+        """Compact lights one photo frames sunk behind a surface, broad lights off their
+        wall, and lights one photo drew just in front of its camera, moved onto the
+        room's boundary (:mod:`.sunk_lights`; ``rules``: which of them, all by default).
+        Where no view clipped (merged brackets, true HDR views) broad lights stay: the
+        photos' light regions over their white say which splats are lights, and without a
+        clip level a lit wall round a window is as bright as the window."""
         if not self.cfg.clip_bounds:
             return scene, SurfacedLights(0, 0.0, 0.0, 0)
         weights = self.y_weights.cpu().numpy()
+        rules = RULES if rules is None else rules
         whites = self._view_whites(self.train)
-        near_only = whites is None
-        if near_only:
+        if whites is None:
+            rules = rules - {"broad"}
             # the lights are what the single-view check calls bright: "over the white"
-            # means "clipped" to the other rules, which need a photo's clip level
+            # means "clipped" to the broad rule, which needs a photo's clip level
             level = float(np.median([np.median(self.data.images[i] @ weights)
                                      for i in self.train]))
             whites = np.full(len(self.train), BRIGHT_RATIO * level)
@@ -554,7 +586,7 @@ class Trainer:
         photos = [self.data.light_views()[i] for i in self.train]
         sightings = sight_lights(views, photos, whites, weights)
         scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings,
-                                              near_only=near_only)
+                                              rules=rules)
         for light in surfaced.placed:  # indices among the training views -> all views
             light.views = [self.train[v] for v in light.views]
         if surfaced.moved:
