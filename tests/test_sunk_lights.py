@@ -338,6 +338,7 @@ def test_the_fit_moves_a_floater_while_it_has_steps_to_go():
     after = trainer.model.t["means"].detach().numpy()
     light = slice(fit.count - 5, fit.count)
     assert np.all(after[light, 1] > 2.8)  # on the ceiling, from 0.16 m in front of the camera
+    assert trainer.floaters_moved == 5
     np.testing.assert_array_equal(after[: fit.count - 5], before[: fit.count - 5])
     state = trainer.model.opt.state[trainer.model.t["means"]]
     assert float(state["exp_avg"][light].abs().max()) == 0.0

@@ -158,6 +158,8 @@ class Trainer:
         self.last_error: float | None = None
         self.idle_rounds = 0
         self.elapsed = 0.0
+        self.floaters_moved = 0
+        """Light splats :meth:`_surface_floaters` moved (reported with the fit's metrics)."""
         self._reset_stats()
 
     def _init_model(self):
@@ -198,6 +200,7 @@ class Trainer:
                 "idle_rounds": self.idle_rounds,
                 "grad_sum": self.grad_sum, "grad_count": self.grad_count,
                 "history": self.history, "elapsed": self.elapsed,
+                "floaters_moved": self.floaters_moved,
                 "poses": self.refiner.state_dict() if self.refiner else None,
                 "planes": self.planes.state_dict() if self.planes else None}
 
@@ -215,6 +218,7 @@ class Trainer:
         self.grad_sum = state["grad_sum"].to(self.device)
         self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
+        self.floaters_moved = int(state.get("floaters_moved", 0))
         self.planes = (PlanePrior.from_state(state["planes"], self.device)
                        if state.get("planes") is not None else None)
         self.refiner = None
@@ -349,8 +353,10 @@ class Trainer:
     # -- the loop ----------------------------------------------------------------------
     def run(self, resume: bool = False) -> FitResult:
         """Fit: train steps, a densify round every ``densify_every`` steps inside the
-        densify window (held-out check, patience, stop at the target error), then
-        :meth:`_finish` (prune, SH degree, backdrop, lights' power, metrics)."""
+        densify window (held-out check, patience, stop at the target error), the lights
+        drawn in front of a camera moved onto the room's surfaces at its end
+        (:meth:`_surface_floaters`), then :meth:`_finish` (prune, SH degree, backdrop,
+        the other light rules, lights' power, metrics)."""
         resumed, init_seconds = self._start(resume)
         t0 = time.perf_counter() - self.elapsed
         stop_reason = "iterations"
@@ -554,6 +560,7 @@ class Trainer:
         rows = np.flatnonzero(np.any(moved.positions != scene.positions, axis=1))
         if not len(rows):
             return
+        self.floaters_moved += len(rows)
         index = torch.as_tensor(rows, device=self.device)
         self.model.set_rows(index, {
             "means": torch.as_tensor(moved.positions[rows], device=self.device),
@@ -674,7 +681,8 @@ class Trainer:
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
             "clipped_lights": [light.as_dict() for light in lights],
-            "surfaced_lights": surfaced.as_dict(),
+            "surfaced_lights": {**surfaced.as_dict(), "floaters_moved_midway":
+                                self.floaters_moved},
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
             "exposure_outliers": exposure_outliers(
