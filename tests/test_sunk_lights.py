@@ -310,18 +310,34 @@ def test_a_floater_whose_boundary_hangs_short_of_the_ceiling_goes_on_to_the_ligh
     assert np.linalg.norm(moved.mean(0) - LIGHT) < 0.2
 
 
-def test_the_fit_moves_a_floater_while_it_has_steps_to_go():
-    """The trainer moves the lights drawn in front of a camera at the end of the densify
-    window, in its own model (so the steps left can clear that photo's view of them),
-    with the moved splats' Adam moments cleared; nothing else moves."""
+def _trainer_on_true_views() -> Trainer:
+    """A fresh trainer on the panel room's views as true HDR (nothing clipped)."""
     _, cams, _ = _views()
     truth = _with(_box(), _light(LIGHT))
-    images = [render(truth, cam).image.numpy() for cam in cams]  # true HDR: nothing clipped
+    images = [render(truth, cam).image.numpy() for cam in cams]
     data = FitData(names=[c.name for c in cams], cameras=cams, images=images,
                    model=ColmapModel(cameras=cams), colour_space="Linear Rec.709 (sRGB)")
     trainer = Trainer(data, preset("fast").updated(holdout_every=0, plane_prior="off",
                                                     init_points=200))
     trainer._fresh()
+    return trainer
+
+
+def test_a_fit_of_views_that_clipped_nothing_puts_a_sunk_light_on_the_ceiling():
+    """True HDR views (or merged brackets): the sunk compact light rule runs too (one
+    photo's light can sit anywhere along its rays whether or not it clipped)."""
+    trainer = _trainer_on_true_views()
+    fit = _with(_box(), _light(SUNK, 1.3))
+    out, report = trainer._surface_sunk_lights(fit)
+    assert report.moved == 5 and len(report.placed) == 1
+    assert np.all(np.abs(out.positions[-5:, 1] - 3.0) < 0.06)
+
+
+def test_the_fit_moves_a_floater_while_it_has_steps_to_go():
+    """The trainer moves the lights drawn in front of a camera at the end of the densify
+    window, in its own model (so the steps left can clear that photo's view of them),
+    with the moved splats' Adam moments cleared; nothing else moves."""
+    trainer = _trainer_on_true_views()
     fit = _with(_box(), _light(NEAR, 0.05))
     tensors = {"means": fit.positions, "quats": fit.rotations, "log_scales": fit.log_scales,
                "opacity_logits": fit.opacity_logits,
