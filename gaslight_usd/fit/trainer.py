@@ -552,7 +552,7 @@ class Trainer:
         Hidden behind such a floater, whatever lies between that camera and the light
         was fitted blind: dim fog splats the photo never had to see through. Moved at the
         end, the light lands behind them (``panels:7``'s ceiling panel from its true HDR
-        views: half its light lost in its own photo); moved here, the remaining steps
+        views: two thirds of its light lost in its own photo); moved here, the remaining steps
         clear the photo's view of it again. The other rules run at the end
         (:meth:`_finish`), where the lights they place are recorded."""
         scene = self.model.to_scene(self.active_degree(), {})
