@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from gaslight_usd.fit.planes import PlanePrior, find_planes
+from gaslight_usd.fit.planes import Plane, PlanePrior, find_planes, room_box
 
 ROOM_LO, ROOM_HI = np.array([-2.5, 0.0, -2.0]), np.array([2.5, 3.0, 2.0])
 
@@ -83,6 +83,50 @@ def test_a_plain_ceiling_is_held_and_a_table_top_is_not():
     assert len(level) == 1
     assert level[0].normal[1] < 0 and -level[0].offset == pytest.approx(3.0, abs=0.02)
     assert len(planes) == 5
+
+
+def _plane(normal, offset, points=500) -> Plane:
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+    u = np.cross(normal, [0.0, 0.0, 1.0] if abs(normal[2]) < 0.9 else [1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    return Plane(normal, offset, np.array([-2.0, -2.0]), np.array([2.0, 2.0]),
+                 np.stack([u, np.cross(normal, u)]), points)
+
+
+def test_the_room_box_is_its_strong_planes_square_to_two_facing_walls():
+    """What bounds a sunk light's move: the room's six faces pass; a plane leaning 30 deg
+    off them, or one holding too few points, does not."""
+    rng = np.random.default_rng(3)
+    pts = room_points(rng)
+    planes, _ = find_planes(pts, cameras_inside(rng), rng)
+    tilted = _plane([np.sin(np.radians(30)), -np.cos(np.radians(30)), 0.0], -2.5)
+    weak = _plane([0.0, -1.0, 0.0], -2.0, points=30)
+    box = room_box(planes + [tilted, weak], len(pts))
+    assert len(box) == 6 and all(any(p is q for q in planes) for p in box)
+
+
+def test_a_ray_crosses_a_planes_patch_from_its_front_only():
+    ceiling = Plane(np.array([0.0, -1.0, 0.0]), -3.0, np.array([-2.5, -2.0]),
+                    np.array([2.5, 2.0]), np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 500)
+    eye = np.array([[0.0, 1.5, 0.0]] * 4)
+    targets = np.array([[0.8, 4.0, 0.5],   # up through the ceiling: 1.5 of its 2.5 m rise
+                        [0.8, 2.0, 0.5],   # stops short of it
+                        [0.0, 0.0, 0.0],   # down, away from it
+                        [9.0, 4.0, 0.0]])  # crosses the plane outside the patch
+    np.testing.assert_allclose(ceiling.crossing(eye, targets), [0.6, 3.0, np.inf, np.inf])
+    above = np.array([[0.0, 3.5, 0.0]])  # behind the plane: no crossing from its front
+    assert ceiling.crossing(above, np.array([[0.0, 5.0, 0.0]]))[0] == np.inf
+    again = Plane(**ceiling.state())  # a checkpoint's copy
+    np.testing.assert_array_equal(again.crossing(eye, targets), ceiling.crossing(eye, targets))
+
+
+@pytest.mark.parametrize("normals", [[[0.67, -0.2, 0.71]], [[1, 0, 0], [0, 1, 0]],
+                                     [[1, 0, 0], [1, 0, 0.05]]])
+def test_no_two_facing_walls_no_room_box(normals):
+    """One diagonal plane (``shade:7``'s from photos), two square ones, or two walls on
+    the same side: nothing bounds."""
+    planes = [_plane(n, -2.0) for n in normals]
+    assert room_box(planes, 4000) == []
 
 
 def test_cameras_on_both_sides_make_no_plane():

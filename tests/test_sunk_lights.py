@@ -14,6 +14,7 @@ from gaslight_usd.fit import preset
 from gaslight_usd.fit.data import FitData
 from gaslight_usd.fit.gather import aimed_camera
 from gaslight_usd.fit.model import SplatModel
+from gaslight_usd.fit.planes import Plane
 from gaslight_usd.fit.sunk_lights import RULES, surface_sunk_lights
 from gaslight_usd.fit.trainer import Trainer
 from gaslight_usd.poses.colmap import ColmapModel
@@ -28,12 +29,12 @@ SUNK = EYE + 1.3 * (LIGHT - EYE)  # where the fit left it: on that photo's rays,
 WHITE = 1.0
 
 
-def _box(step: float = 0.2) -> SplatScene:
-    """A 5 x 3 x 4 m room of flat, opaque, dim splats (radiance 0.3)."""
-    xs, ys = np.arange(-2.4, 2.41, step), np.arange(0.1, 2.91, step)
+def _box(step: float = 0.2, ceiling: float = 3.0) -> SplatScene:
+    """A 5 x ``ceiling`` x 4 m room of flat, opaque, dim splats (radiance 0.3)."""
+    xs, ys = np.arange(-2.4, 2.41, step), np.arange(0.1, ceiling - 0.09, step)
     zs = np.arange(-1.9, 1.91, step)
     faces = []
-    for fixed, value, (a, b) in ((1, 0.0, (xs, zs)), (1, 3.0, (xs, zs)), (0, -2.5, (ys, zs)),
+    for fixed, value, (a, b) in ((1, 0.0, (xs, zs)), (1, ceiling, (xs, zs)), (0, -2.5, (ys, zs)),
                                  (0, 2.5, (ys, zs)), (2, -2.0, (xs, ys)), (2, 2.0, (xs, ys))):
         u, v = np.meshgrid(a, b)
         pts = np.zeros((u.size, 3))
@@ -130,6 +131,31 @@ def test_a_light_whose_place_a_second_photo_frames_is_left_where_it_was():
     out, report = _surface(fit, cams, images)
     assert report.moved == 0 and report.refused == 5 and not report.placed
     np.testing.assert_array_equal(out.positions, fit.positions)
+
+
+CEILING = Plane(np.array([0.0, -1.0, 0.0]), -3.0, np.array([-2.5, -2.0]),
+                np.array([2.5, 2.0]), np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 500)
+"""The room's ceiling as :func:`gaslight_usd.fit.planes.find_planes` gives it."""
+
+
+@pytest.mark.parametrize("planes", [(), (CEILING,)])
+def test_a_light_sunk_past_a_ceiling_smeared_deep_stops_on_the_rooms_plane(planes):
+    """A ceiling few photos see is fitted deep (0.5 m up here) and the captured space's
+    boundary with it: the light goes to that boundary, or, given the room's ceiling
+    plane, stops where its photo's rays cross the plane first."""
+    _, cams, images = _views()
+    fit = _with(_box(ceiling=3.5), _light(EYE + 1.6 * (LIGHT - EYE), 1.6))
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    out, report = surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
+                                      planes=planes)
+    assert report.moved == 5
+    height = float(np.median(out.positions[-5:, 1]))
+    if planes:
+        assert height == pytest.approx(3.0, abs=0.06)
+        assert np.linalg.norm(out.positions[-5:].mean(0) - LIGHT) < 0.1
+    else:  # the boundary as the deep ceiling's 0.2 m tiles give it
+        assert 3.25 < height < 3.55
 
 
 def test_lights_inside_the_room_are_not_moved():

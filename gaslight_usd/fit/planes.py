@@ -20,7 +20,9 @@ table's height does not (the room lies behind it). A plain ceiling, whose fill i
 scattered behind it, is held where the walls stop at it (:func:`_caps`); a plain
 floor, which furniture hides from the walls' points, is not. Bright clumps the fit
 leaves floating in front of a lit patch of a plane (a window) go onto it
-(:func:`bright_floaters`).
+(:func:`bright_floaters`). The same planes, where they make a room's box
+(:func:`room_box`), stop a light sunk behind a ceiling few photos see
+(:mod:`.sunk_lights`), with the plane prior on or off.
 Sweeping a scene's main directions for planes is Gallup et al. 2007's idea; here
 it runs over the points, not pixels: pixel-wise photo-consistency on plain
 walls put only a quarter of their pixels within 6 cm (``fast``'s 120-pixel
@@ -111,6 +113,23 @@ class Plane:
         return {"normal": [round(float(v), 5) for v in self.normal],
                 "offset": round(float(self.offset), 5), "points": self.points,
                 "size": [round(float(v), 4) for v in self.hi - self.lo]}
+
+    def state(self) -> dict:
+        """Everything ``Plane(**state)`` needs (a checkpoint's copy)."""
+        return {"normal": self.normal, "offset": self.offset, "lo": self.lo, "hi": self.hi,
+                "axes": self.axes, "points": self.points}
+
+    def crossing(self, eye: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """(K,) the ratio along ``eye + (target - eye) * r`` where each ray crosses this
+        plane's patch from its front (the cameras' side), ``inf`` where it does not."""
+        step = (target - eye) @ self.normal
+        height = eye @ self.normal - self.offset
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = -height / step
+        uv = (eye + (target - eye) * np.where(np.isfinite(ratio), ratio, 0.0)[:, None]
+              ) @ self.axes.T
+        hit = ((height > 0) & (step < 0) & np.all((uv >= self.lo) & (uv <= self.hi), axis=1))
+        return np.where(hit, ratio, np.inf)
 
 
 def _nearer_fit(points: np.ndarray, normal: np.ndarray, offset: float, tau: float,
@@ -238,6 +257,54 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
                 continue
             planes.append(plane)
     return planes + _caps(points, planes, hiding, crowds, tau), tau
+
+
+BOUND_MIN_POINTS = 50
+"""A plane that bounds a light's move (:func:`room_box`) holds at least this many of the
+initial points... (a fit from 200 points found tilted 8-27-point planes, one 0.4 m under
+the ceiling)"""
+BOUND_MIN_SHARE = 0.02
+"""...and this share of them (a ceiling few photos see holds 2.8-3.3 % of ``fast``'s 4000
+on the chain bench's rooms)."""
+
+
+def room_box(planes: list[Plane], total: int) -> list[Plane]:
+    """The planes of ``planes`` (from ``total`` initial points) trusted to bound where a
+    light is: a room's box, not whatever the main directions made of a sparse capture.
+
+    A light the photos sink behind a ceiling few of them see is stopped where its ray
+    crosses the room's planes (:mod:`.sunk_lights`); a wrong plane there would pull a
+    light into the room. So a bound needs two facing walls (opposite normals, the
+    cameras between them), each holding :data:`BOUND_MIN_POINTS` and
+    :data:`BOUND_MIN_SHARE` of the points; their normal and the direction most of the
+    other strong planes square to it agree on make the room's frame, and every strong
+    plane along one of its three directions bounds. Without such a pair (a room whose
+    main directions came out diagonal, as ``shade:7``'s from photos do) nothing bounds."""
+    least = max(BOUND_MIN_POINTS, BOUND_MIN_SHARE * total)
+    strong = [p for p in planes if p.points >= least]
+    square = 1 - OWN_TILT ** 2 / 2
+    for i, first in enumerate(strong):
+        for second in strong[i + 1:]:
+            if first.normal @ second.normal < -square and first.offset + second.offset < 0:
+                return _along_frame(strong, first.normal, square)
+    return []
+
+
+def _along_frame(planes: list[Plane], axis: np.ndarray, square: float) -> list[Plane]:
+    """The ``planes`` along ``axis`` or along the frame square to it that most of the
+    others agree on (``square``: the least |cos| of two directions taken as one)."""
+    def along(a: np.ndarray, b: np.ndarray) -> bool:
+        return abs(a @ b) > square
+
+    across = [p for p in planes if abs(p.normal @ axis) < OWN_TILT]
+    frame = [axis]
+    if across:
+        def agreeing(p: Plane) -> tuple[int, int]:
+            return (sum(along(p.normal, q.normal) or abs(p.normal @ q.normal) < OWN_TILT
+                        for q in across), p.points)
+        second = max(across, key=agreeing).normal
+        frame += [second, np.cross(axis, second)]
+    return [p for p in planes if any(along(p.normal, d) for d in frame)]
 
 
 class _Crowds:
@@ -442,8 +509,7 @@ class PlanePrior:
     def state_dict(self) -> dict:
         return {"tau": self.tau, "member": self.member.cpu(), "lifted": self.lifted.cpu(),
                 "floating": self.floating.cpu(),
-                "planes": [{"normal": p.normal, "offset": p.offset, "lo": p.lo, "hi": p.hi,
-                            "axes": p.axes, "points": p.points} for p in self.planes]}
+                "planes": [p.state() for p in self.planes]}
 
     @classmethod
     def from_state(cls, state: dict, device: str | torch.device = "cpu") -> PlanePrior:

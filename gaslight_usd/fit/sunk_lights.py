@@ -22,8 +22,10 @@ draws it on the same pixels:
   captured space (:mod:`gaslight_usd.capture`: the free space the cameras' median point
   sees, bounded by the fit's dim opaque surfaces), whole: all the splats that outline
   holds, by one ratio, until their power-weighted centre is where the ray leaves the
-  space (per splat, the boundary's bin-to-bin depth noise broke a panel into fragments
-  the lights finder no longer took for a light). Refused where another training photo
+  space, or crosses one of the room's planes first (a ceiling few photos see is
+  smeared deep, and the space's boundary with it); whole, because per splat the
+  boundary's bin-to-bin depth noise broke a panel into fragments the lights finder no
+  longer took for a light. Refused where another training photo
   frames the new place: there parallax placed the light, and a bright splat outside
   the space on a compact light's rays is something else (the lit ceiling behind a lamp;
   what a lampshade hides from the space's one viewpoint). The light moved is recorded
@@ -68,6 +70,7 @@ from ..sightings import PeakMap, Sightings, peak_map
 from ..splats import SplatScene
 from ..surroundings import splat_sigma
 from .light_seeds import MAX_CONE_DEG, LightSeed, framing
+from .planes import Plane
 
 RAY_STEPS = 128
 """Samples along a light splat's ray where it is tested against the captured space."""
@@ -180,7 +183,8 @@ class _Moves:
 
 def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: np.ndarray,
                   outside: np.ndarray, eyes: np.ndarray, space: CaptureSpace,
-                  cameras: list[PinholeCamera], sightings: Sightings) -> _Moves:
+                  cameras: list[PinholeCamera], sightings: Sightings,
+                  planes: Sequence[Plane] = ()) -> _Moves:
     """Compact lights (the bright splats ``idx`` one compact ``region`` holds) with a
     splat ``outside`` the space, moved whole along their photo's rays (from ``eyes``,
     per region) until their power-weighted centre is on the boundary: the photo draws
@@ -197,6 +201,10 @@ def _sunk_compact(pos: np.ndarray, power: np.ndarray, idx: np.ndarray, region: n
     centre /= np.maximum(w, 1e-30)[:, None]
     eye = eyes[sunk]
     ratio, ok = _exit_along(space, eye, centre, np.ones(len(sunk)))
+    # a ceiling few photos see is smeared deep, and the boundary with it (0.4 m over
+    # panels:7's, from photos): the room's planes, where the ray crosses one first
+    for plane in planes:
+        ratio = np.minimum(ratio, plane.crossing(eye, centre))
     ok &= ratio < 1.0
     # only where the one photo it is moved along frames the new place (elsewhere the
     # photos' parallax placed the light, and a bright splat outside the space on its
@@ -321,14 +329,16 @@ their wall, floaters just in front of a camera (the module docstring)."""
 def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
                         views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
                         weights: np.ndarray, sightings: Sightings,
-                        rules: frozenset[str] = RULES) -> tuple[SplatScene, SurfacedLights]:
+                        rules: frozenset[str] = RULES, planes: Sequence[Plane] = ()
+                        ) -> tuple[SplatScene, SurfacedLights]:
     """``scene`` with its sunk compact lights and its off-surface broad lights moved
     onto the room's boundary along the photos' rays (module docstring), and what
     moved. ``cameras``: the training views; ``views``: their photos (linear HDR, or
     their :class:`gaslight_usd.sightings.PeakMap`); ``whites`` (V,): each view's white,
     in the scene's units; ``weights``: luminance weights; ``sightings``: the views' light
     regions (:func:`gaslight_usd.sightings.sight_lights`, same views); ``rules``: which
-    of :data:`RULES` to apply."""
+    of :data:`RULES` to apply; ``planes``: the room's box
+    (:func:`gaslight_usd.fit.planes.room_box`), which bounds a sunk light's move."""
     if not rules <= RULES:
         raise ValueError(f"unknown rules {sorted(rules - RULES)}; known: {sorted(RULES)}")
     lum = scene.base_colours @ np.asarray(weights, np.float32)
@@ -357,7 +367,7 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     outside = ~space.inside(pos[bright], reach=2.0 * sigma[bright])
     whites = np.asarray(whites, np.float64)
     moves = [_sunk_compact(pos, power, bright[held_c], near_c[held_c], outside[held_c],
-                           eyes, space, cameras, sightings)
+                           eyes, space, cameras, sightings, planes)
              if "sunk" in rules else _Moves.none(),
              _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
                                 cameras, views, whites, weights)

@@ -54,7 +54,7 @@ from .init import initial_points, neighbour_scales
 from .light_seeds import LightSeed, LightSeedPoints, find_light_seeds, seed_points
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
-from .planes import PlanePrior, find_planes
+from .planes import Plane, PlanePrior, find_planes, room_box
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
@@ -142,11 +142,13 @@ class Trainer:
                                         self.device)
         self.model.antialiased = cfg.antialiased
         self.planes = None
+        found = find_planes(pts, np.array([c.center for c in cams]),
+                            np.random.default_rng([self.seed, 11]))
+        self.room_planes: list[Plane] = room_box(found[0], len(pts))
+        """The room's box among the large planes of the initial points
+        (:func:`.planes.room_box`): the bound on a sunk light's move (:mod:`.sunk_lights`)."""
         if self.use_planes:
-            centres = np.array([c.center for c in cams])
-            self.planes = PlanePrior(*find_planes(pts, centres,
-                                                  np.random.default_rng([self.seed, 11])),
-                                     self.device)
+            self.planes = PlanePrior(*found, self.device)
             self._assign_planes()
         self.refiner = (PoseRefiner(cams, cfg.lr_pose_rotation,
                                     cfg.lr_pose_translation * self.extent, self.device)
@@ -201,6 +203,7 @@ class Trainer:
                 "grad_sum": self.grad_sum, "grad_count": self.grad_count,
                 "history": self.history, "elapsed": self.elapsed,
                 "floaters_moved": self.floaters_moved,
+                "room_planes": [plane.state() for plane in self.room_planes],
                 "poses": self.refiner.state_dict() if self.refiner else None,
                 "planes": self.planes.state_dict() if self.planes else None}
 
@@ -219,6 +222,7 @@ class Trainer:
         self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
         self.floaters_moved = int(state.get("floaters_moved", 0))
+        self.room_planes = [Plane(**plane) for plane in state.get("room_planes", [])]
         self.planes = (PlanePrior.from_state(state["planes"], self.device)
                        if state.get("planes") is not None else None)
         self.refiner = None
@@ -593,7 +597,7 @@ class Trainer:
         photos = [self.data.light_views()[i] for i in self.train]
         sightings = sight_lights(views, photos, whites, weights)
         scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings,
-                                              rules=rules)
+                                              rules=rules, planes=self.room_planes)
         for light in surfaced.placed:  # indices among the training views -> all views
             light.views = [self.train[v] for v in light.views]
         if surfaced.moved:
