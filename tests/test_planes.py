@@ -5,7 +5,13 @@ import numpy as np
 import pytest
 import torch
 
-from gaslight_usd.fit.planes import Plane, PlanePrior, find_planes, room_box
+from gaslight_usd.fit.planes import (
+    Plane,
+    PlanePrior,
+    ceiling_from_walls,
+    find_planes,
+    room_box,
+)
 
 ROOM_LO, ROOM_HI = np.array([-2.5, 0.0, -2.0]), np.array([2.5, 3.0, 2.0])
 
@@ -103,6 +109,51 @@ def test_the_room_box_is_its_strong_planes_square_to_two_facing_walls():
     weak = _plane([0.0, -1.0, 0.0], -2.0, points=30)
     box = room_box(planes + [tilted, weak], len(pts))
     assert len(box) == 6 and all(any(p is q for q in planes) for p in box)
+
+
+def _no_ceiling(rng, wall_tops=(3.0, 3.0, 3.0, 3.0), per_face=400, smear=0.02):
+    """A room's points with no ceiling among them (a ceiling few photos see, smeared
+    beyond what crowds like a plane), each wall's points up to its ``wall_tops``."""
+    pts = []
+    floor = rng.uniform(ROOM_LO, ROOM_HI, (per_face, 3))
+    floor[:, 1] = ROOM_LO[1] + rng.normal(0, smear, per_face)
+    pts.append(floor)
+    walls = [(0, ROOM_LO[0]), (0, ROOM_HI[0]), (2, ROOM_LO[2]), (2, ROOM_HI[2])]
+    for (axis, value), top in zip(walls, wall_tops, strict=True):
+        p = rng.uniform(ROOM_LO, [ROOM_HI[0], top, ROOM_HI[2]], (per_face, 3))
+        p[:, axis] = value + rng.normal(0, smear, per_face)
+        pts.append(p)
+    return np.concatenate(pts)
+
+
+def test_a_box_without_its_ceiling_gets_one_where_its_walls_stop():
+    rng = np.random.default_rng(5)
+    pts = _no_ceiling(rng)
+    planes, tau = find_planes(pts, cameras_inside(rng), rng)
+    box = room_box(planes, len(pts))
+    assert box and not any(p.normal[1] < -0.99 for p in box)
+    ceiling = ceiling_from_walls(box, pts, tau, np.array([0.05, 1.0, 0.0]))
+    assert ceiling is not None
+    assert ceiling.normal @ np.array([0.0, -1.0, 0.0]) > 0.999  # facing down, at the cameras
+    assert -ceiling.offset == pytest.approx(3.0, abs=0.2)  # the walls' 95 % (2.85)
+    # a ray from a camera up through it stops there
+    ratio = ceiling.crossing(np.array([[0.0, 1.5, 0.0]]), np.array([[0.5, 4.5, 0.5]]))[0]
+    assert 1.5 + 3.0 * ratio == pytest.approx(-ceiling.offset, abs=0.01)
+    # a box with its ceiling, or no up, gets none
+    full = room_points(rng)
+    planes_full, tau_full = find_planes(full, cameras_inside(rng), rng)
+    assert ceiling_from_walls(room_box(planes_full, len(full)), full, tau_full,
+                              np.array([0.0, 1.0, 0.0])) is None
+    assert ceiling_from_walls(box, pts, tau, np.zeros(3)) is None
+
+
+def test_walls_that_stop_at_different_heights_make_no_ceiling():
+    rng = np.random.default_rng(6)
+    pts = _no_ceiling(rng, wall_tops=(3.0, 1.8, 3.0, 1.8))
+    planes, tau = find_planes(pts, cameras_inside(rng), rng)
+    box = room_box(planes, len(pts))
+    assert box
+    assert ceiling_from_walls(box, pts, tau, np.array([0.0, 1.0, 0.0])) is None
 
 
 def test_a_ray_crosses_a_planes_patch_from_its_front_only():

@@ -307,6 +307,69 @@ def _along_frame(planes: list[Plane], axis: np.ndarray, square: float) -> list[P
     return [p for p in planes if any(along(p.normal, d) for d in frame)]
 
 
+UP_TILT = 0.5
+"""The cameras' mean up (their image's -y) picks the frame's direction within this |cos|
+of it... (phones and tripods are held upright; a room's vertical is its frame's)"""
+WALL_TOP_SHARE = 0.95
+"""...a wall's top is this quantile of its points along the vertical (a wall's points
+reach 5 % short of a plain top, and the ceiling's smear runs past it)..."""
+WALL_TOPS_AGREE = 4.0
+"""...and the walls' tops agree to within this many inlier distances (0.3 m in a
+5 x 4 x 3 m room; 0.19 m on ``panels:7``'s ``balanced`` initial points)."""
+
+
+def ceiling_from_walls(box: list[Plane], points: np.ndarray, tau: float,
+                       up: np.ndarray) -> Plane | None:
+    """The ceiling where the walls of a room's ``box`` (:func:`room_box`) stop, when
+    the box has none: ``up`` is the cameras' mean up direction.
+
+    A ceiling few photos see is smeared in depth, more so with more initial points:
+    ``panels:7``'s from photos spreads from 2.3 to 3.4 m over ``balanced``'s 20,000, a hump
+    no offset bin crowds like a plane, so :func:`find_planes` has no ceiling and a panel
+    sunk above it is not bounded (3-4 stops short at the probes). The walls still run up
+    to the ceiling and stop there: their points' :data:`WALL_TOP_SHARE` quantile along the
+    vertical, where at least two walls agree (:data:`WALL_TOPS_AGREE`), is the ceiling
+    (2.99 m there, the ceiling is at 3.0; at the 0.98 quantile the ceiling's own smear
+    along the walls put it at 3.19, above the panel's place). The floor is not taken so:
+    furniture hides the walls' feet (their lowest points lie 0.4-0.6 m up)."""
+    up = np.asarray(up, np.float64)
+    norm = np.linalg.norm(up)
+    if not box or norm == 0:
+        return None
+    up = up / norm
+    if any(p.normal @ up < -(1 - OWN_TILT ** 2 / 2) for p in box):
+        return None  # the box has its ceiling
+    walls = [p for p in box if abs(p.normal @ up) < OWN_TILT]
+    if len(walls) < 2:
+        return None
+    # the frame's direction nearest the cameras' up: the walls' normals are two of it
+    stack = np.array([w.normal for w in walls])
+    vertical = np.linalg.svd(stack)[2][-1]
+    vertical = vertical * np.sign(vertical @ up)
+    if vertical @ up < UP_TILT:
+        return None
+    tops = []
+    for wall in walls:
+        # its points across its patch, up and down all of them (the patch's own 2-98 %
+        # stop short of the top; past its sides lie the ceiling's smear and the corners)
+        across = int(np.argmin(np.abs(wall.axes @ vertical)))
+        u = points @ wall.axes[across]
+        on = ((np.abs(points @ wall.normal - wall.offset) < tau / 2)
+              & (u >= wall.lo[across]) & (u <= wall.hi[across]))
+        if on.sum() >= BOUND_MIN_POINTS:
+            tops.append(float(np.quantile(points[on] @ vertical, WALL_TOP_SHARE)))
+    if len(tops) < 2 or max(tops) - min(tops) > WALL_TOPS_AGREE * tau:
+        return None
+    height = float(np.median(tops))
+    other = np.eye(3)[int(np.argmin(np.abs(vertical)))]
+    u = other - (other @ vertical) * vertical
+    u /= np.linalg.norm(u)
+    axes = np.stack([u, np.cross(vertical, u)])
+    uv = points @ axes.T
+    lo, hi = np.percentile(uv, 2, axis=0), np.percentile(uv, 98, axis=0)
+    return Plane(-vertical, -height, lo, hi, axes, 0)
+
+
 class _Crowds:
     """Where the points crowd along one main direction (the planes' offsets along it)."""
 

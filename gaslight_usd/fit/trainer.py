@@ -54,7 +54,7 @@ from .init import initial_points, neighbour_scales
 from .light_seeds import LightSeed, LightSeedPoints, find_light_seeds, seed_points
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
-from .planes import Plane, PlanePrior, find_planes, room_box
+from .planes import Plane, PlanePrior, ceiling_from_walls, find_planes, room_box
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
@@ -146,7 +146,13 @@ class Trainer:
                             np.random.default_rng([self.seed, 11]))
         self.room_planes: list[Plane] = room_box(found[0], len(pts))
         """The room's box among the large planes of the initial points
-        (:func:`.planes.room_box`): the bound on a sunk light's move (:mod:`.sunk_lights`)."""
+        (:func:`.planes.room_box`), with the ceiling where its walls stop if none was found
+        (:func:`.planes.ceiling_from_walls`): the bound on a sunk light's move
+        (:mod:`.sunk_lights`)."""
+        ceiling = ceiling_from_walls(self.room_planes, pts, found[1],
+                                     np.mean([-c.R[1] for c in cams], axis=0))
+        if ceiling is not None:
+            self.room_planes.append(ceiling)
         if self.use_planes:
             self.planes = PlanePrior(*found, self.device)
             self._assign_planes()
