@@ -326,7 +326,7 @@ def ceiling_from_walls(box: list[Plane], points: np.ndarray, tau: float,
     A ceiling few photos see is smeared in depth, more so with more initial points:
     ``panels:7``'s from photos spreads from 2.3 to 3.4 m over ``balanced``'s 20,000, a hump
     no offset bin crowds like a plane, so :func:`find_planes` has no ceiling and a panel
-    sunk above it is not bounded (3-4 stops short at the probes). The walls still run up
+    sunk above it is not bounded (it sat 0.18 m over the ceiling). The walls still run up
     to the ceiling and stop there: their points' :data:`WALL_TOP_SHARE` quantile along the
     vertical, where at least two walls agree (:data:`WALL_TOPS_AGREE`), is the ceiling
     (2.99 m there, the ceiling is at 3.0; at the 0.98 quantile the ceiling's own smear
@@ -342,7 +342,7 @@ def ceiling_from_walls(box: list[Plane], points: np.ndarray, tau: float,
     walls = [p for p in box if abs(p.normal @ up) < OWN_TILT]
     if len(walls) < 2:
         return None
-    # the frame's direction nearest the cameras' up: the walls' normals are two of it
+    # the frame's direction square to the walls' normals, turned to the cameras' up
     stack = np.array([w.normal for w in walls])
     vertical = np.linalg.svd(stack)[2][-1]
     vertical = vertical * np.sign(vertical @ up)
