@@ -1,6 +1,8 @@
 """The plane prior (:mod:`gaslight_usd.fit.planes`): a room's planes found from smeared
 points, slices through the room refused, held splats put back on their planes."""
 
+from dataclasses import asdict
+
 import numpy as np
 import pytest
 import torch
@@ -167,7 +169,7 @@ def test_a_ray_crosses_a_planes_patch_from_its_front_only():
     np.testing.assert_allclose(ceiling.crossing(eye, targets), [0.6, 3.0, np.inf, np.inf])
     above = np.array([[0.0, 3.5, 0.0]])  # behind the plane: no crossing from its front
     assert ceiling.crossing(above, np.array([[0.0, 5.0, 0.0]]))[0] == np.inf
-    again = Plane(**ceiling.state())  # a checkpoint's copy
+    again = Plane(**asdict(ceiling))  # a checkpoint's copy
     np.testing.assert_array_equal(again.crossing(eye, targets), ceiling.crossing(eye, targets))
 
 

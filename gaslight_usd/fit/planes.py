@@ -34,7 +34,7 @@ central 96 % of them), so the rule reads the same in metres or in SfM units.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import torch
@@ -113,11 +113,6 @@ class Plane:
         return {"normal": [round(float(v), 5) for v in self.normal],
                 "offset": round(float(self.offset), 5), "points": self.points,
                 "size": [round(float(v), 4) for v in self.hi - self.lo]}
-
-    def state(self) -> dict:
-        """Everything ``Plane(**state)`` needs (a checkpoint's copy)."""
-        return {"normal": self.normal, "offset": self.offset, "lo": self.lo, "hi": self.hi,
-                "axes": self.axes, "points": self.points}
 
     def crossing(self, eye: np.ndarray, target: np.ndarray) -> np.ndarray:
         """(K,) the ratio along ``eye + (target - eye) * r`` where each ray crosses this
@@ -572,7 +567,7 @@ class PlanePrior:
     def state_dict(self) -> dict:
         return {"tau": self.tau, "member": self.member.cpu(), "lifted": self.lifted.cpu(),
                 "floating": self.floating.cpu(),
-                "planes": [p.state() for p in self.planes]}
+                "planes": [asdict(p) for p in self.planes]}
 
     @classmethod
     def from_state(cls, state: dict, device: str | torch.device = "cpu") -> PlanePrior:

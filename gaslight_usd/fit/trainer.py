@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -209,7 +209,7 @@ class Trainer:
                 "grad_sum": self.grad_sum, "grad_count": self.grad_count,
                 "history": self.history, "elapsed": self.elapsed,
                 "floaters_moved": self.floaters_moved,
-                "room_planes": [plane.state() for plane in self.room_planes],
+                "room_planes": [asdict(plane) for plane in self.room_planes],
                 "poses": self.refiner.state_dict() if self.refiner else None,
                 "planes": self.planes.state_dict() if self.planes else None}
 
