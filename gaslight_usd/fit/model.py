@@ -26,12 +26,6 @@ MAX_DEGREE = 3
 class SplatModel:
     antialiased: bool = False
     """Render in the antialiased mode (:func:`~gaslight_usd.render.project.project`)."""
-    view_dependence_cap: float = 0.0
-    """Most radiance a splat's view-dependent (SH) terms may add or take away (0: no
-    cap). Below the cap a splat's colour varies with the view as freely as its
-    relative terms say; a splat brighter than the cap has those terms scaled down to
-    it, so a light stays about as bright from every side (see
-    ``FitConfig.view_dependence_cap``)."""
 
     def __init__(self, tensors: dict[str, torch.Tensor], lrs: dict[str, float]):
         self.t = {k: tensors[k].detach().clone().requires_grad_(True) for k in NAMES}
@@ -64,14 +58,11 @@ class SplatModel:
         """Differentiable SplatParams (3DGS convention) at SH ``degree``."""
         base = torch.exp(self.t["log_colour"])
         k = (degree + 1) ** 2 - 1
-        swing = base
-        if self.view_dependence_cap > 0:
-            swing = torch.clamp(base, max=self.view_dependence_cap)
         return SplatParams(means=self.t["means"], quats=self.t["quats"],
                            log_scales=self.t["log_scales"],
                            opacity_logits=self.t["opacity_logits"],
                            sh_dc=(base - 0.5) / C0,
-                           sh_rest=swing[:, None, :] * self.t["sh_rel"][:, :k],
+                           sh_rest=base[:, None, :] * self.t["sh_rel"][:, :k],
                            antialiased=self.antialiased)
 
     def to_scene(self, degree: int, metadata: dict) -> SplatScene:

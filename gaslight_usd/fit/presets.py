@@ -106,14 +106,6 @@ class FitConfig:
     lr_opacity: float = 5e-2
     lr_colour: float = 1e-2
     lr_sh: float = 2.5e-3
-    view_dependence_cap: float = 4.0
-    """Most radiance a splat's view-dependent (SH) terms may add or take away, in units of
-    the training views' mean level (about their white; 0: no cap). A small bright light
-    seen in few views could otherwise be fitted as ghosts on either side of it, each
-    dark from the views that would contradict it; capped, a splat far over the white
-    shines about alike from every side, as a lamp does, while the surfaces keep their
-    view-dependent sheen. Measured by ``gaslight2usd bench --suite chain`` (the lights'
-    power and placement)."""
     init_opacity: float = 0.1
     backdrop_tiles: int = 3000
     """Tiles over the splats' box; those no training view sees are kept (0: no backdrop)."""

@@ -140,7 +140,7 @@ class Trainer:
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
         self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs,
                                         self.device)
-        self._configure_model()
+        self.model.antialiased = cfg.antialiased
         self.planes = None
         found = find_planes(pts, np.array([c.center for c in cams]),
                             np.random.default_rng([self.seed, 11]))
@@ -213,17 +213,12 @@ class Trainer:
                 "poses": self.refiner.state_dict() if self.refiner else None,
                 "planes": self.planes.state_dict() if self.planes else None}
 
-    def _configure_model(self) -> None:
-        """The model's drawing settings that are not tensors (kept out of checkpoints)."""
-        self.model.antialiased = self.cfg.antialiased
-        self.model.view_dependence_cap = self.cfg.view_dependence_cap * self.mean_level
-
     def _restore(self, state: dict) -> bool:
         if (state.get("config") != self.cfg.as_dict() or state.get("seed") != self.seed
                 or state.get("views") != self.data.names):
             return False
         self.model = SplatModel.from_state(state["model"], self.device)
-        self._configure_model()
+        self.model.antialiased = self.cfg.antialiased
         self.step, self.init_method = state["step"], state["init_method"]
         self.generator = torch.Generator()
         self.generator.set_state(state["generator"])
