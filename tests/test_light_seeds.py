@@ -11,13 +11,17 @@ import numpy as np
 from test_lights import LAMP, _recoloured, room_scene
 from test_sightings import Y709, _cameras, _views
 
+from gaslight_usd.fit.data import FitData
 from gaslight_usd.fit.frame_edge import light_regions
 from gaslight_usd.fit.init import initial_points
 from gaslight_usd.fit.light_seeds import (
     LightSeedPoints,
     find_light_seeds,
+    measured_light_seeds,
     seed_points,
 )
+from gaslight_usd.fit.presets import FitConfig
+from gaslight_usd.fit.trainer import Trainer
 from gaslight_usd.lights import search_lights
 from gaslight_usd.poses.colmap import ColmapModel
 from gaslight_usd.resize import area_resize
@@ -150,3 +154,37 @@ def test_a_light_the_other_points_already_cover_is_not_seeded_again():
     assert left.lights == 1 and len(left.points) == 12
     np.testing.assert_allclose(left.centres, centres[1:])
     np.testing.assert_allclose(left.points, np.repeat(centres[1:], 12, axis=0))
+
+
+def _measured_views() -> tuple[list, list[np.ndarray]]:
+    """The room's views as merged brackets or true HDR give them: nothing clipped."""
+    scene, _ = room_scene()
+    cams = _cameras()
+    return cams, [v.astype(np.float32) for v in _views(scene, cams)]
+
+
+def test_a_measured_lamp_is_placed_from_its_outlines_and_its_lit_patch_is_not():
+    """Where no view clipped, the compact regions far over the views' level are lights:
+    the lamp (hundreds of times the walls) is placed; the lit ceiling patch under it (5x
+    the walls) and the window (broad) are not seeded."""
+    cams, views = _measured_views()
+    seeds = measured_light_seeds(cams, views, views, Y709)
+    assert len(seeds) == 1
+    assert np.linalg.norm(seeds[0].position - LAMP) < 0.05
+    assert len(seeds[0].views) >= 3 and 0.0 < seeds[0].size < 0.15
+    # a level no region reaches seeds nothing
+    assert measured_light_seeds(cams, views, views, Y709, ratio=1e6) == []
+
+
+def test_a_fit_of_measured_views_starts_on_the_lamp_and_records_no_clipped_light():
+    """The measured lamp starts the fit and shields its splats from the plane prior's
+    floater rule (``_assign_planes``: a bright splat in front of a lit patch of wall goes
+    onto it; at ``balanced`` that moved ``bulb:7``'s bare bulb 0.9 m onto the wall behind
+    it), but it is not recorded as a clipped light: nothing clipped."""
+    cams, views = _measured_views()
+    data = FitData(names=[f"v{i}" for i in range(len(views))], cameras=cams, images=views,
+                   model=ColmapModel(cameras=cams), colour_space="lin_rec709")
+    trainer = Trainer(data, FitConfig(iterations=1, init_points=2000, budget=4000))
+    started = trainer._start_seeds()
+    assert len(started) == 1 and np.linalg.norm(started[0].position - LAMP) < 0.05
+    assert trainer._light_seeds() == []

@@ -51,7 +51,13 @@ from .data import FitData
 from .exposure_check import exposure_outliers
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .init import initial_points, neighbour_scales
-from .light_seeds import LightSeed, LightSeedPoints, find_light_seeds, seed_points
+from .light_seeds import (
+    LightSeed,
+    LightSeedPoints,
+    find_light_seeds,
+    measured_light_seeds,
+    seed_points,
+)
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .planes import Plane, PlanePrior, ceiling_from_walls, find_planes, room_box
@@ -114,6 +120,7 @@ class Trainer:
         self.mean_level = float(np.mean([data.images[i].mean() for i in self.train])) or 1.0
         self.history: list[dict[str, Any]] = []
         self._seeds: list[LightSeed] | None = None
+        self._measured_seeds: list[LightSeed] | None = None
         clipped = self._view_whites(self.train) if config.plane_prior != "off" else None
         self.use_planes = config.plane_prior == "on" or (config.plane_prior == "auto"
                                                          and clipped is None)
@@ -192,7 +199,7 @@ class Trainer:
         (:func:`.planes.bright_floaters`), bar the seeded compact lights'."""
         lum = torch.exp(self.model.t["log_colour"].detach()) @ self.y_weights
         free = lum > self._plane_white if self._plane_white is not None else None
-        lights = [(seed.position, seed.size) for seed in self._light_seeds()]
+        lights = [(seed.position, seed.size) for seed in self._start_seeds()]
         self.planes.assign(self.model.t["means"], free, lum, lights)
 
     def _reset_stats(self) -> None:
@@ -527,10 +534,24 @@ class Trainer:
                 self.y_weights.cpu().numpy())
         return self._seeds
 
+    def _start_seeds(self) -> list[LightSeed]:
+        """The lights the fit starts splats on: :meth:`_light_seeds` where some view
+        clipped; where none did (merged brackets, true HDR views), the compact regions
+        over :data:`MEASURED_LIGHT_RATIO` x the views' median level, placed by their
+        outlines alike (:func:`measured_light_seeds`). Only the start: a measured light
+        is not recorded as clipped (the lights finder weighs it as the views show it)."""
+        if self._view_whites(list(range(len(self.data.images)))) is not None:
+            return self._light_seeds()
+        if self._measured_seeds is None:
+            self._measured_seeds = measured_light_seeds(
+                self.data.cameras, self.data.light_views(), self.data.images,
+                self.y_weights.cpu().numpy())
+        return self._measured_seeds
+
     def _seeded_lights(self) -> LightSeedPoints:
-        """Initial points on :meth:`_light_seeds`, drawn from their own generator (the
+        """Initial points on :meth:`_start_seeds`, drawn from their own generator (the
         other initial points draw what they drew without seeds)."""
-        seeds = self._light_seeds()
+        seeds = self._start_seeds()
         rng = np.random.default_rng([self.seed, 7])
         pts, cols = seed_points(seeds, self.data.cameras, self.data.light_views(),
                                 self.data.images, rng, self.y_weights.cpu().numpy())
