@@ -176,15 +176,16 @@ def test_a_measured_lamp_is_placed_from_its_outlines_and_its_lit_patch_is_not():
     assert measured_light_seeds(cams, views, views, Y709, ratio=1e6) == []
 
 
-def test_a_fit_of_measured_views_starts_on_the_lamp_and_records_no_clipped_light():
-    """The measured lamp starts the fit and shields its splats from the plane prior's
-    floater rule (``_assign_planes``: a bright splat in front of a lit patch of wall goes
-    onto it; at ``balanced`` that moved ``bulb:7``'s bare bulb 0.9 m onto the wall behind
-    it), but it is not recorded as a clipped light: nothing clipped."""
+def test_a_fit_of_measured_views_finds_the_lamp_and_records_no_clipped_light():
+    """The measured lamp shields its splats from the plane prior's floater rule
+    (``_assign_planes``: a bright splat in front of a lit patch of wall goes onto it; at
+    ``balanced`` that moved ``bulb:7``'s bare bulb 0.9 m onto the wall behind it), but
+    it is not recorded as a clipped light (nothing clipped) and adds no initial points."""
     cams, views = _measured_views()
     data = FitData(names=[f"v{i}" for i in range(len(views))], cameras=cams, images=views,
                    model=ColmapModel(cameras=cams), colour_space="lin_rec709")
     trainer = Trainer(data, FitConfig(iterations=1, init_points=2000, budget=4000))
-    started = trainer._start_seeds()
+    started = trainer._measured_lights()
     assert len(started) == 1 and np.linalg.norm(started[0].position - LAMP) < 0.05
     assert trainer._light_seeds() == []
+    assert trainer._seeded_lights().lights == 0

@@ -12,6 +12,7 @@ from gaslight_usd.fit.planes import (
     PlanePrior,
     ceiling_from_walls,
     find_planes,
+    on_a_plane,
     room_box,
 )
 
@@ -171,6 +172,18 @@ def test_a_ray_crosses_a_planes_patch_from_its_front_only():
     assert ceiling.crossing(above, np.array([[0.0, 5.0, 0.0]]))[0] == np.inf
     again = Plane(**asdict(ceiling))  # a checkpoint's copy
     np.testing.assert_array_equal(again.crossing(eye, targets), ceiling.crossing(eye, targets))
+
+
+def test_a_light_flush_with_a_planes_patch_is_on_it_and_a_bulb_before_a_wall_is_not():
+    """A measured ceiling panel is the plane's light (the floater rule may put its splats
+    back on it); a bulb 0.9 m under it, or a point past the patch's edge, is not on it."""
+    ceiling = Plane(np.array([0.0, -1.0, 0.0]), -3.0, np.array([-2.5, -2.0]),
+                    np.array([2.5, 2.0]), np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 500)
+    assert on_a_plane(np.array([-1.2, 3.02, -0.6]), 0.5, [ceiling])
+    assert on_a_plane(np.array([-1.2, 2.98, -0.6]), 0.05, [ceiling])
+    assert not on_a_plane(np.array([1.2, 2.1, 1.1]), 0.1, [ceiling])
+    assert not on_a_plane(np.array([4.0, 3.0, 0.0]), 0.1, [ceiling])
+    assert not on_a_plane(np.array([0.0, 3.0, 0.0]), 0.1, [])
 
 
 @pytest.mark.parametrize("normals", [[[0.67, -0.2, 0.71]], [[1, 0, 0], [0, 1, 0]],

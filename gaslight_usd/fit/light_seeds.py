@@ -29,9 +29,10 @@ to the surface fill, which puts them on their walls.
 
 Views that clipped nothing (merged brackets, true HDR) have no white; there the outlines
 are read over :data:`MEASURED_LIGHT_RATIO` x the views' median level
-(:func:`measured_light_seeds`). Those seeds only start the fit and keep the plane prior's
-floater rule off the light (:meth:`gaslight_usd.fit.trainer.Trainer._start_seeds`); they
-are not recorded as clipped lights.
+(:func:`measured_light_seeds`). Those lights add no initial points (nothing clipped, the
+brightness test's sweep starts them); they keep the plane prior's floater rule off a light
+in front of a wall and are drawn fine at the end (``Trainer._measured_lights``,
+:mod:`.fine_power`), and are not recorded as clipped lights.
 """
 
 from __future__ import annotations
@@ -302,16 +303,24 @@ def measured_light_seeds(cameras: list[PinholeCamera],
     ``ratio`` x the views' median luminance (``images``: the fitting-size views, for the
     level; ``light_views``: where the outlines are read, as :func:`find_light_seeds`).
 
-    A bare bulb a few pixels wide has no features to triangulate, and the brightness
-    test's plane sweep (:func:`gaslight_usd.fit.init.bright_points`) puts its pixels on
-    the wall behind it, where the other views see its light patch; the fit then has to
-    move its splats most of a metre with the 3DGS centre step, and at ``balanced`` it did
-    not (``gaslight2usd bench --suite chain --scene bulb:7 --method "truth HDR"
-    --preset balanced``). The outlines' rays meet at the bulb.
+    The plane prior (on where nothing clipped) takes a bright splat floating in front
+    of a lit patch of a wall for that patch's light and puts it on the wall
+    (:func:`gaslight_usd.fit.planes.bright_floaters`); a bare bulb 0.9 m in front of
+    the wall it lights is such a splat once a few of its splats have slid onto the
+    wall, and at ``balanced`` the whole bulb followed them there (``gaslight2usd bench
+    --suite chain --scene bulb:7 --method "truth HDR" --preset balanced``). The
+    outlines place the bulb where it is, and its splats are kept off that rule.
     """
     luma = np.asarray(y_weights, np.float64)
-    level = float(np.median([np.median(np.asarray(im, np.float64) @ luma) for im in images]))
+    level = measured_level(images, luma)
     if not level > 0:
         return []
     whites = np.full(len(light_views), ratio * level)
     return seed_lights(sight_lights(cameras, light_views, whites, luma), cameras)
+
+
+def measured_level(images: list[np.ndarray], y_weights: np.ndarray) -> float:
+    """The views' median luminance (median over views of each view's median): the level
+    :data:`MEASURED_LIGHT_RATIO` is counted from."""
+    luma = np.asarray(y_weights, np.float64)
+    return float(np.median([np.median(np.asarray(im, np.float64) @ luma) for im in images]))

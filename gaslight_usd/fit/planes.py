@@ -127,6 +127,16 @@ class Plane:
         return np.where(hit, ratio, np.inf)
 
 
+def on_a_plane(point: np.ndarray, reach: float, planes: list[Plane]) -> bool:
+    """Whether ``point`` lies within ``reach`` of one of ``planes``' patches (either side)."""
+    for plane in planes:
+        uv = point @ plane.axes.T
+        if abs(float(point @ plane.normal) - plane.offset) <= reach and bool(
+                np.all((uv >= plane.lo - reach) & (uv <= plane.hi + reach))):
+            return True
+    return False
+
+
 def _nearer_fit(points: np.ndarray, normal: np.ndarray, offset: float, tau: float,
                 max_tilt: float | None = None) -> tuple[np.ndarray, float]:
     """The plane ``normal . x = offset`` refitted by least squares to the ``points``

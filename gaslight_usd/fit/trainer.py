@@ -49,18 +49,29 @@ from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
 from .exposure_check import exposure_outliers
+from .fine_power import FinePower, fine_power_factor, with_fine_power
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .init import initial_points, neighbour_scales
 from .light_seeds import (
+    MEASURED_LIGHT_RATIO,
     LightSeed,
     LightSeedPoints,
     find_light_seeds,
+    measured_level,
     measured_light_seeds,
     seed_points,
 )
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
-from .planes import Plane, PlanePrior, ceiling_from_walls, find_planes, room_box
+from .planes import (
+    KEEP_OUT_SIZES,
+    Plane,
+    PlanePrior,
+    ceiling_from_walls,
+    find_planes,
+    on_a_plane,
+    room_box,
+)
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, lights_to_weigh
 from .presets import FitConfig
@@ -199,7 +210,11 @@ class Trainer:
         (:func:`.planes.bright_floaters`), bar the seeded compact lights'."""
         lum = torch.exp(self.model.t["log_colour"].detach()) @ self.y_weights
         free = lum > self._plane_white if self._plane_white is not None else None
-        lights = [(seed.position, seed.size) for seed in self._start_seeds()]
+        lights = [(seed.position, seed.size) for seed in self._light_seeds()]
+        # a measured light flush with a plane (a ceiling panel) is the plane's light:
+        # the floater rule puts its floating splats back on it
+        lights += [(seed.position, seed.size) for seed in self._measured_lights()
+                   if not on_a_plane(seed.position, 2.0 * seed.size, self.planes.planes)]
         self.planes.assign(self.model.t["means"], free, lum, lights)
 
     def _reset_stats(self) -> None:
@@ -534,14 +549,16 @@ class Trainer:
                 self.y_weights.cpu().numpy())
         return self._seeds
 
-    def _start_seeds(self) -> list[LightSeed]:
-        """The lights the fit starts splats on: :meth:`_light_seeds` where some view
-        clipped; where none did (merged brackets, true HDR views), the compact regions
+    def _measured_lights(self) -> list[LightSeed]:
+        """Where no view clipped (merged brackets, true HDR views), the compact regions
         over :data:`MEASURED_LIGHT_RATIO` x the views' median level, placed by their
-        outlines alike (:func:`measured_light_seeds`). Only the start: a measured light
-        is not recorded as clipped (the lights finder weighs it as the views show it)."""
+        outlines as clipped ones are (:func:`measured_light_seeds`); none where some view
+        clipped. They add no initial points (the brightness test's sweep starts measured
+        lights well); they keep the plane prior's floater rule off a light in front of a
+        wall (:meth:`_assign_planes`) and are drawn fine at the end (:meth:`_fine_power`).
+        Not recorded as clipped lights: the lights finder weighs them as the views show."""
         if self._view_whites(list(range(len(self.data.images)))) is not None:
-            return self._light_seeds()
+            return []
         if self._measured_seeds is None:
             self._measured_seeds = measured_light_seeds(
                 self.data.cameras, self.data.light_views(), self.data.images,
@@ -549,9 +566,9 @@ class Trainer:
         return self._measured_seeds
 
     def _seeded_lights(self) -> LightSeedPoints:
-        """Initial points on :meth:`_start_seeds`, drawn from their own generator (the
+        """Initial points on :meth:`_light_seeds`, drawn from their own generator (the
         other initial points draw what they drew without seeds)."""
-        seeds = self._start_seeds()
+        seeds = self._light_seeds()
         rng = np.random.default_rng([self.seed, 7])
         pts, cols = seed_points(seeds, self.data.cameras, self.data.light_views(),
                                 self.data.images, rng, self.y_weights.cpu().numpy())
@@ -570,6 +587,31 @@ class Trainer:
             whites = float(self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
         return sight_lights(self.data.cameras, self.data.light_views(), whites,
                             self.y_weights.cpu().numpy()).as_dict()
+
+    def _fine_power(self, scene: SplatScene) -> tuple[SplatScene, list[FinePower]]:
+        """The lights the views measured (no view clipped), brightened to keep drawn fine
+        the power they showed their views at the fitting size (:mod:`.fine_power`)."""
+        if self._view_whites(list(range(len(self.data.images)))) is not None:
+            return scene, []
+        seeds = self._measured_lights()
+        if not seeds:
+            return scene, []
+        y = self.y_weights.cpu().numpy()
+        bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
+            self.data.images, y)
+        cams = self.cameras()
+        lights = []
+        for seed in seeds:
+            near = np.linalg.norm(scene.positions - seed.position, axis=1)
+            rows = np.flatnonzero(bright & (near <= KEEP_OUT_SIZES * seed.size))
+            views = [i for i in seed.views if i in self.train]
+            if not len(rows) or not views:
+                continue
+            factor, used = fine_power_factor(scene, rows, seed.position, seed.size,
+                                             [cams[i] for i in views],
+                                             [self.data.images[i] for i in views], y)
+            lights.append(FinePower(seed.position, rows, factor, used))
+        return with_fine_power(scene, lights), lights
 
     def _floaters_step(self) -> int:
         """The step after which the lights drawn just in front of a camera are moved onto
@@ -673,6 +715,7 @@ class Trainer:
         degree, scores = self._choose_degree()
         scene = self.model.to_scene(degree, {})
         scene, surfaced = self._surface_sunk_lights(scene)
+        scene, fine = self._fine_power(scene)
         cams = self.cameras()
         backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
                                    cfg.backdrop_tiles, room=cfg.budget - scene.count,
@@ -712,6 +755,7 @@ class Trainer:
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
             "clipped_lights": [light.as_dict() for light in lights],
+            "fine_power": [light.as_dict() for light in fine],
             "surfaced_lights": {**surfaced.as_dict(), "floaters_moved_midway":
                                 self.floaters_moved},
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(

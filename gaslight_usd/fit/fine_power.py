@@ -1,0 +1,120 @@
+"""A measured compact light's power where it is drawn finer than it was fitted.
+
+A bulb a few fitting pixels wide is fitted as a cluster of overlapping splats. Drawn at
+the fitting size, the antialiasing filter spreads each small splat over a pixel at a low
+opacity, and the cluster's splats add up; drawn finer, each splat is smaller and more
+opaque, and those in front hide those behind, so the cluster shows less light than it
+did to the fit. A probe, an HDRI or a renderer draws it finer: ``balanced``'s bare bulb
+from true HDR views matched its views within 0.05 stops at the fitting size and came out
+0.4-0.55 stops short at four times it, and 0.3-0.4 stops short at the probes beside it
+(``gaslight2usd bench --suite chain --scene bulb:7 --method "truth HDR" --preset
+balanced``; docs/measurements.md).
+
+So each light the views measured (:func:`.light_seeds.measured_light_seeds`) is brightened
+until, drawn at :data:`FINE` x the fitting size, the pixels round it in the training views
+that frame it hold the light those views measured there (:func:`fine_power_factor`). A
+light's colour does not change any splat's opacity, so its share of a pixel is linear in
+the factor. Clipped lights are not touched here: their power is weighed from the surfaces
+they light, with the light drawn fine (:mod:`.power`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..cameras import PinholeCamera
+from ..render import render
+from ..splats import SplatScene
+from .power import scaled_sh
+
+FINE = 4
+"""How many times finer than the fitting size the light is drawn to find its factor
+(the cluster's light converges by then: 3 % between 4 and 8 times on ``bulb:7``)."""
+MAX_FACTOR_STOPS = 1.0
+"""The factor is kept within this many stops of 1."""
+MIN_SHARE = 0.05
+"""A view counts only where the light gives at least this share of its window's light."""
+MARGIN_PX = 2
+"""Fitting pixels round the light's outline in each view's window."""
+
+
+@dataclass
+class FinePower:
+    """One light's factor and what it was read from."""
+
+    position: np.ndarray
+    rows: np.ndarray
+    """The light's splats (indices into the scene)."""
+    factor: float
+    views: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"position": [round(float(v), 4) for v in self.position],
+                "splats": int(len(self.rows)), "views": self.views,
+                "factor_stops": round(math.log2(self.factor), 3)}
+
+
+def _window(cam: PinholeCamera, centre: np.ndarray, size: float
+            ) -> tuple[int, int, int, int] | None:
+    """(u0, v0, u1, v1) fitting pixels round the light, None unless it lies whole
+    inside the frame, in front of the camera."""
+    uv, z = cam.project(centre[None])
+    if z[0] <= 0:
+        return None
+    r = int(math.ceil(cam.fx * size / z[0])) + MARGIN_PX
+    u, v = int(uv[0, 0]), int(uv[0, 1])
+    u0, v0, u1, v1 = u - r, v - r, u + r + 1, v + r + 1
+    if u0 < 0 or v0 < 0 or u1 > cam.width or v1 > cam.height:
+        return None
+    return u0, v0, u1, v1
+
+
+def _fine_crop(cam: PinholeCamera, box: tuple[int, int, int, int], fine: int) -> PinholeCamera:
+    """The camera of ``box`` (fitting pixels) drawn ``fine`` times finer."""
+    u0, v0, u1, v1 = box
+    return PinholeCamera((u1 - u0) * fine, (v1 - v0) * fine, cam.fx * fine, cam.fy * fine,
+                         (cam.cx - u0) * fine, (cam.cy - v0) * fine, cam.R, cam.t,
+                         name=cam.name)
+
+
+def fine_power_factor(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size: float,
+                      cameras: list[PinholeCamera], images: list[np.ndarray],
+                      y_weights: np.ndarray, fine: int = FINE) -> tuple[float, int]:
+    """(factor, views): what the splats ``rows`` (a light at ``centre``, ``size`` its
+    radius) must be brightened by so that, drawn ``fine`` x finer, the windows round it
+    in ``cameras`` hold what ``images`` (their views at fitting size) measured there;
+    the median over the views that frame it whole (1.0 and 0 views where none does)."""
+    y = np.asarray(y_weights, np.float32)
+    others = scene.subset(np.setdiff1d(np.arange(scene.count), rows))
+    factors = []
+    for cam, image in zip(cameras, images, strict=True):
+        box = _window(cam, centre, size)
+        if box is None:
+            continue
+        u0, v0, u1, v1 = box
+        measured = float((image[v0:v1, u0:u1] @ y).sum())
+        crop = _fine_crop(cam, box, fine)
+        drawn = float((render(scene, crop).image.numpy() @ y).sum()) / fine**2
+        without = float((render(others, crop).image.numpy() @ y).sum()) / fine**2
+        light = drawn - without
+        if light <= MIN_SHARE * max(drawn, 1e-30):
+            continue
+        factors.append(1.0 + (measured - drawn) / light)
+    if not factors:
+        return 1.0, 0
+    limit = 2.0**MAX_FACTOR_STOPS
+    return float(np.clip(np.median(factors), 1.0 / limit, limit)), len(factors)
+
+
+def with_fine_power(scene: SplatScene, lights: list[FinePower]) -> SplatScene:
+    """``scene`` with each light's splats brightened by its factor."""
+    sh = scene.sh.copy()
+    for light in lights:
+        if light.views and len(light.rows):
+            sh[light.rows] = scaled_sh(scene.sh[light.rows], light.factor)
+    return SplatScene(scene.positions, scene.rotations, scene.log_scales,
+                      scene.opacity_logits, sh, scene.normals, dict(scene.metadata))

@@ -1,0 +1,85 @@
+"""A measured compact light keeps, drawn finer, the power its views measured at fitting size."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gaslight_usd.fit.data import scale_camera_to
+from gaslight_usd.fit.fine_power import FinePower, fine_power_factor, with_fine_power
+from gaslight_usd.fit.gather import aimed_camera
+from gaslight_usd.render import render
+from gaslight_usd.resize import area_resize
+from gaslight_usd.splats import SplatScene
+
+Y709 = np.array([0.2126, 0.7152, 0.0722], np.float32)
+BULB = np.array([0.0, 1.0, 0.0])
+SIZE = 48
+
+
+def _wall_and_bulb(cluster: int, seed: int = 0) -> tuple[SplatScene, np.ndarray]:
+    """A dim wall 2 m behind a bulb of ``cluster`` overlapping splats (1 cm, opacity 0.6,
+    luminance about 5,000, 8 mm apart: sub-pixel at the fitting size, 6 cm a pixel)."""
+    rng = np.random.default_rng(seed)
+    g = np.linspace(-1.5, 1.5, 25)
+    wu, wv = np.meshgrid(g, g)
+    wall = np.column_stack([wu.ravel(), 1.0 + wv.ravel(), np.full(wu.size, 2.0)])
+    bulb = BULB + rng.normal(0.0, 0.008, (cluster, 3))
+    pos = np.concatenate([wall, bulb])
+    rgb = np.concatenate([np.full((len(wall), 3), 0.3), np.full((cluster, 3), 5000.0)])
+    scales = np.concatenate([np.full((len(wall), 3), 0.12), np.full((cluster, 3), 0.01)])
+    opac = np.concatenate([np.full(len(wall), 0.99), np.full(cluster, 0.6)])
+    scene = SplatScene.from_activated(pos, rgb, scales, opac, metadata={"antialiased": True})
+    return scene, np.arange(len(wall), len(pos))
+
+
+def _cameras() -> list:
+    eyes = [np.array([x, 1.1, -2.5]) for x in (-0.8, -0.3, 0.3, 0.8)]
+    return [aimed_camera(e, BULB, 0.5, SIZE) for e in eyes]
+
+
+def _window_light(scene: SplatScene, cam, fine: int) -> float:
+    """The bulb's window's light (luminance summed, in fitting pixels) drawn ``fine``x."""
+    image = render(scene, scale_camera_to(cam, cam.width * fine, cam.height * fine)).image
+    u, v = (int(c) for c in cam.project(BULB[None])[0][0])
+    lum = image.numpy() @ Y709
+    return float(lum[(v - 4) * fine:(v + 5) * fine, (u - 4) * fine:(u + 5) * fine].sum()) / fine**2
+
+
+def test_a_cluster_that_dims_drawn_finer_is_brightened_to_what_its_views_measured():
+    """Drawn at the fitting size the cluster matches its views (they are its own
+    renders); drawn four times finer its splats hide each other and it shows less.
+    Brightened by the factor, the fine drawing holds what the views measured, within 5 %."""
+    scene, rows = _wall_and_bulb(8)
+    cams = _cameras()
+    views = [render(scene, cam).image.numpy() for cam in cams]
+    coarse = [_window_light(scene, cam, 1) for cam in cams]
+    fine = [_window_light(scene, cam, 4) for cam in cams]
+    assert max(f / c for f, c in zip(fine, coarse, strict=True)) < 0.9  # it dims
+    factor, used = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709)
+    assert used == len(cams) and factor > 1.1
+    fixed = with_fine_power(scene, [FinePower(BULB, rows, factor, used)])
+    after = [_window_light(fixed, cam, 4) for cam in cams]
+    np.testing.assert_allclose(np.median(after), np.median(coarse), rtol=0.05)
+    # only the light's splats changed
+    np.testing.assert_array_equal(fixed.sh[: rows[0]], scene.sh[: rows[0]])
+
+
+def test_one_splat_keeps_its_power_at_any_size_and_is_left_alone():
+    """A lone small splat keeps its power drawn finer (the antialiased dilation's
+    opacity compensation): views that measured it as it is (drawn fine, area-averaged
+    to the fitting size) give it no factor."""
+    scene, rows = _wall_and_bulb(1)
+    cams = _cameras()
+    views = [area_resize(render(scene, scale_camera_to(cam, SIZE * 4, SIZE * 4)).image.numpy(),
+                         SIZE, SIZE) for cam in cams]
+    factor, used = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709)
+    assert used == len(cams)
+    assert abs(np.log2(factor)) < 0.05
+
+
+def test_a_light_no_view_frames_whole_keeps_its_power():
+    scene, rows = _wall_and_bulb(40)
+    cams = [aimed_camera(np.array([0.0, 1.1, -2.5]), BULB + np.array([1.2, 0.0, 0.0]), 0.5,
+                         SIZE)]
+    views = [render(scene, cam).image.numpy() for cam in cams]
+    assert fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709) == (1.0, 0)
