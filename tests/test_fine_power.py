@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from gaslight_usd.fit.data import scale_camera_to
-from gaslight_usd.fit.fine_power import FinePower, fine_power_factor, with_fine_power
+from gaslight_usd.fit.fine_power import (
+    TOLERANCE_STOPS,
+    FinePower,
+    fine_power_factor,
+    with_fine_power,
+)
 from gaslight_usd.fit.gather import aimed_camera
 from gaslight_usd.render import render
 from gaslight_usd.resize import area_resize
@@ -55,8 +60,12 @@ def test_a_cluster_that_dims_drawn_finer_is_brightened_to_what_its_views_measure
     coarse = [_window_light(scene, cam, 1) for cam in cams]
     fine = [_window_light(scene, cam, 4) for cam in cams]
     assert max(f / c for f, c in zip(fine, coarse, strict=True)) < 0.9  # it dims
-    factor, used = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709)
+    factor, used = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709,
+                                     tolerance=0.0)
     assert used == len(cams) and factor > 1.1
+    # by default the first TOLERANCE_STOPS of it are not applied
+    shrunk, _ = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709)
+    np.testing.assert_allclose(np.log2(shrunk), np.log2(factor) - TOLERANCE_STOPS, atol=1e-6)
     fixed = with_fine_power(scene, [FinePower(BULB, rows, factor, used)])
     after = [_window_light(fixed, cam, 4) for cam in cams]
     np.testing.assert_allclose(np.median(after), np.median(coarse), rtol=0.05)
