@@ -86,9 +86,12 @@ def test_one_splat_keeps_its_power_at_any_size_and_is_left_alone():
     assert abs(np.log2(factor)) < 0.05
 
 
-def test_a_light_no_view_frames_whole_keeps_its_power():
+def test_a_light_fewer_than_two_views_frame_whole_keeps_its_power():
     scene, rows = _wall_and_bulb(40)
     cams = [aimed_camera(np.array([0.0, 1.1, -2.5]), BULB + np.array([1.2, 0.0, 0.0]), 0.5,
                          SIZE)]
     views = [render(scene, cam).image.numpy() for cam in cams]
     assert fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709) == (1.0, 0)
+    one = _cameras()[:1]  # it dims in this view too, but one window is one sample
+    seen = [render(scene, cam).image.numpy() for cam in one]
+    assert fine_power_factor(scene, rows, BULB, 0.02, one, seen, Y709) == (1.0, 0)

@@ -42,6 +42,9 @@ TOLERANCE_STOPS = 0.1
 probes' disagree by about this much where nothing saturates (``fast``'s bulb from true
 HDR: factors of 0.05-0.11 stops where the probes already read it within 0.04), so a
 smaller factor is not evidence of a missing power."""
+MIN_VIEWS = 2
+"""Views that must frame the light whole for a factor (one view's window is one sample of
+a cluster's fine drawing: on ``shade:7`` a speck above the shade got the cap from one)."""
 MIN_SHARE = 0.05
 """A view counts only where the light gives at least this share of its window's light."""
 MARGIN_PX = 2
@@ -95,7 +98,7 @@ def fine_power_factor(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, s
     radius) must be brightened by so that, drawn ``fine`` x finer, the windows round it
     in ``cameras`` hold what ``images`` (their views at fitting size) measured there;
     the median over the views that frame it whole, less :data:`TOLERANCE_STOPS` (1.0 and
-    0 views where none does)."""
+    0 views where fewer than :data:`MIN_VIEWS` do)."""
     y = np.asarray(y_weights, np.float32)
     others = scene.subset(np.setdiff1d(np.arange(scene.count), rows))
     factors = []
@@ -112,7 +115,7 @@ def fine_power_factor(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, s
         if light <= MIN_SHARE * max(drawn, 1e-30):
             continue
         factors.append(1.0 + (measured - drawn) / light)
-    if not factors:
+    if len(factors) < MIN_VIEWS:
         return 1.0, 0
     stops = math.log2(max(float(np.median(factors)), 2.0**-MAX_FACTOR_STOPS))
     stops = math.copysign(min(max(abs(stops) - tolerance, 0.0), MAX_FACTOR_STOPS), stops)
