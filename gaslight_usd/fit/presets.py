@@ -75,6 +75,10 @@ class FitConfig:
     the uplift's fill (a lower bound for a clipped light); windows and lights a view
     measured keep their power. ``gaslight2usd bench --suite chain`` measures it (power
     errors per light)."""
+    fine_power: bool = True
+    """Where no view clipped, brighten each compact light the views measured so that,
+    drawn finer than the fitting size (HDRIs, probes), it keeps the power its views
+    measured (:mod:`.fine_power`); off: the splats as fitted."""
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""

@@ -591,7 +591,7 @@ class Trainer:
     def _fine_power(self, scene: SplatScene) -> tuple[SplatScene, list[FinePower]]:
         """The lights the views measured (no view clipped), brightened to keep drawn fine
         the power they showed their views at the fitting size (:mod:`.fine_power`)."""
-        if self._view_whites(list(range(len(self.data.images)))) is not None:
+        if not self.cfg.fine_power:
             return scene, []
         seeds = self._measured_lights()
         if not seeds:
