@@ -61,9 +61,10 @@ POINTS_PER_LIGHT = 12
 """Initial points per seeded light."""
 MEASURED_LIGHT_RATIO = 64.0
 """Where no view clipped (merged brackets, true HDR views), a compact region this many
-times the views' median luminance is a light to start splats on
-(:func:`measured_light_seeds`): the chain bench's bulb, shaded lamp and the example's
-lamp are 10,000-50,000 times it, a lit patch of wall under a lamp rarely 64 times."""
+times the views' median luminance is a measured light (:func:`measured_light_seeds`):
+the chain bench's bare bulb is about 50,000 times it; at 64 its rooms' true HDR views
+give the bulb, one of two ceiling panels, the example's lamp, and the shaded lamp's
+opening with a speck above it (docs/measurements.md, session 33)."""
 FRAME_MARGIN = 0.02
 """A point counts as framed when it projects this share of the width inside the frame
 (a light on the border is cut, and its outline is not whole)."""
