@@ -22,7 +22,7 @@ they light, with the light drawn fine (:mod:`.power`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -128,5 +128,4 @@ def with_fine_power(scene: SplatScene, lights: list[FinePower]) -> SplatScene:
     for light in lights:
         if light.views and len(light.rows):
             sh[light.rows] = scaled_sh(scene.sh[light.rows], light.factor)
-    return SplatScene(scene.positions, scene.rotations, scene.log_scales,
-                      scene.opacity_logits, sh, scene.normals, dict(scene.metadata))
+    return replace(scene, sh=sh, metadata=dict(scene.metadata))
