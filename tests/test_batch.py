@@ -344,7 +344,10 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     out = tmp_path / "out"
     cmd = [*CLI, "batch", str(manifest), "-o", str(out), "-q"]
 
-    # SIGTERM while both scenes fit in their processes: both stop as by Ctrl-C
+    # SIGTERM while both scenes fit in their processes: both stop as by Ctrl-C. The fits
+    # are made long here, so that neither can finish before the signal on a fast machine
+    # (with 8 steps, scene a was done before b had started fitting in one CI run).
+    manifest.write_text(manifest.read_text().replace("iterations = 8", "iterations = 20000"))
     proc = subprocess.Popen([*cmd, "--jobs", "2"], stdout=subprocess.PIPE, text=True)
     wait_for(lambda: all(log_has(out / n / "batch.log", "[1/3 fit] fit.splats") for n in "ab"))
     proc.send_signal(signal.SIGTERM)
@@ -356,7 +359,10 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     assert "interrupted after" in (out / "a" / "batch.log").read_text()
     assert not leftovers(out) and not (out / "a" / "splats.ply").exists()
 
-    # SIGKILL of the whole batch once scene a is finished and b is under way
+    # SIGKILL of the whole batch once scene a is finished and b is under way (b's fit made
+    # long, the last scene's own options, so that it cannot finish before the kill)
+    tiny = manifest.read_text().replace("iterations = 20000", "iterations = 8")
+    manifest.write_text(tiny + "[scenes.options.fit]\niterations = 20000\n")
     seen = {n: log_size(out / n / "batch.log") for n in "ab"}
     proc = subprocess.Popen(cmd, start_new_session=True)
     wait_for(lambda: log_has(out / "b" / "batch.log", "[1/3 fit] fit.splats", seen["b"]))
@@ -376,6 +382,7 @@ def test_sigterm_stops_cleanly_and_sigkill_loses_nothing(tmp_path, posed_hdr_sce
     writer.wait()
     assert leftovers(out / "b") and not (out / "b" / "splats.ply").exists()
 
+    manifest.write_text(tiny)
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     report = json.loads((out / "batch.json").read_text())
