@@ -5,8 +5,9 @@ Mitsuba (3.7+) reads a 3DGS PLY into its ``ellipsoids`` shape (exp of
 offset) and its ``volprim_rf_basic`` integrator ray-traces them as in "3D
 Gaussian Ray Tracing": every Gaussian a ray meets (bounding ellipsoid at 3
 sigma) contributes alpha = opacity x its density at the ray's closest point,
-composited front to back in hit order. Ours splats them per cube face (EWA, the
-3DGS rasteriser) and resamples to the lat-long. So Mitsuba's radiance along the
+composited front to back in hit order. Ours splats them through 192 narrow views
+(EWA, the 3DGS rasteriser; ``gaslight_usd/render/sphere_views.py``) and resamples to
+the lat-long. So Mitsuba's radiance along the
 lat-long's own pixel-centre directions is a second opinion on ours: no camera
 convention in between (the same world frame, the same rays).
 
@@ -15,14 +16,14 @@ Known differences, which set the tolerances below:
   splat's light; ours cuts at alpha 1/255 (3.3 sigma at opacity 0.9: 0.4 %);
 - 3DGS's 0.3 px^2 low-pass dilation widens our splats without dimming them:
   +0.3 / sigma_px^2 of the light (+1.6 % at the 4.3 px used here);
-- EWA is a first-order (affine) projection: exact enough within ~30 degrees of
-  a cube face's axis, but near face seams and corners it over-states a splat's
-  footprint (measured +5 to +90 %, growing with the splat's angular size; see
-  tests/consumers/README.md), and off-axis it draws a footprint symmetric on
-  the face's image plane rather than on the sphere (its light centroid moves
-  towards the face axis by ~3 tan(off-axis) sigma^2 radians). The splats here
-  sit 22 degrees off a face axis, so this test checks the convention, the
-  values and the compositing, not the seams.
+- EWA is a first-order (affine) projection, and each view sorts by depth along its
+  own axis: a large splat draws up to 8 % more light than Mitsuba (a lone 8 degree
+  splat, anywhere on the sphere; ``tests/consumers/mitsuba_numbers.py``), and off its
+  view's axis the footprint is symmetric on the view's image plane rather than on the
+  sphere. The views are narrow (13.5 degrees from axis to edge), so both stay small;
+  the 90 degree cube faces drawn before over-stated a splat near their seams by up to
+  90 %. The splats here sit 22 degrees off a cube axis; this test checks the
+  convention, the values and the compositing.
 
 A Mitsuba ``perspective`` sensor looking along +Z (+Y up) checks the lat-long's
 orientation with Mitsuba's own camera.
@@ -239,7 +240,10 @@ def test_front_to_back_compositing_agrees(renders):
     ours, mit = renders["ours"], renders["mitsuba"]
     mask = windows(np.array([[1.0, 0, 0]]), WIDTH, 5 * PAIR_SIGMA_DEG)
     p_ours, p_mit = window_power(ours, mask)[0], window_power(mit, mask)[0]
-    np.testing.assert_allclose(p_ours, p_mit, rtol=0.03)
+    # 5 %: a lone splat this size (4.5 degrees) draws 1.03 x Mitsuba's light wherever it
+    # lies (tests/consumers/mitsuba_numbers.py), where the cube faces drew 0.99 x on a
+    # face's axis (this pair's place) and 1.14 x on a seam
+    np.testing.assert_allclose(p_ours, p_mit, rtol=0.05)
     # The centre pixel: the near splat's colour over the far one's, in that order.
     y, x = np.round(direction_to_latlong(np.array([1.0, 0, 0]), WIDTH, WIDTH // 2) - 0.5
                     ).astype(int)[::-1]
@@ -272,8 +276,8 @@ def test_a_closed_shell_of_large_splats_keeps_its_power(tmp_path):
     """Inside a room the probe is surrounded by large overlapping splats, some far
     brighter than their neighbours (a lamp, a window). Per-view depth sorting and the
     linearised (EWA) projection both drift from Mitsuba's exact per-ray ray marching
-    there; blending 14 views keeps the light at 0.96 of Mitsuba's (six cube faces
-    alone: 0.72; without the bright cap both are 1.01)."""
+    there. Six cube faces drawn directly kept 0.72 of Mitsuba's light, the narrow views
+    1.04 (without the bright cap: 1.01)."""
     from gaslight_usd.render.envmap import render_latlong
 
     mi = _mitsuba()
@@ -292,4 +296,43 @@ def test_a_closed_shell_of_large_splats_keeps_its_power(tmp_path):
     rows = width // 2
     solid = np.cos(np.pi * (0.5 - (np.arange(rows) + 0.5) / rows))[:, None, None]
     ratio = float((ours * solid).sum() / (theirs * solid).sum())
-    assert 0.9 < ratio < 1.05  # measured 0.96
+    assert 0.9 < ratio < 1.07  # measured 1.04
+
+
+def test_a_window_beside_the_probe_does_not_paint_over_its_wall(tmp_path):
+    """A bright window (round splats 0.08 m across) in a dark wall of flat splats, the
+    probe 0.5 m in front of it: the case where drawing through 90 degree cube faces went
+    wrong. A face whose axis points at the wall beside the window draws the window's
+    splats 60 degrees off axis, and the linearised projection stretches their footprints
+    back over the wall: the wall farther than 0.3 m from the window came out 3.2 x
+    Mitsuba's light. Drawn through narrow views it is 1.5 x (what is left is mostly the
+    window splats' tails past 3 sigma, which Mitsuba cuts and we draw down to 1/255)."""
+    from gaslight_usd.render.envmap import render_latlong
+
+    mi = _mitsuba()
+    step = 0.06
+    grid = np.arange(-1.2, 1.2 + 1e-9, step)
+    y, z = (a.ravel() for a in np.meshgrid(grid, grid))
+    pos = np.stack([np.full(y.size, 0.5), y, z], 1)
+    window = (np.abs(y) < 0.4) & (np.abs(z) < 0.45)
+    colour = np.where(window[:, None], 5.0, 0.3) * np.ones((1, 3))
+    scales = np.tile([0.005, 0.7 * step, 0.7 * step], (y.size, 1))  # the wall: flat
+    scales[window] = 0.08
+    wall = SplatScene.from_activated(pos, colour, scales, np.full(y.size, 0.95))
+    probe, width = np.zeros(3), 256
+    theirs = mitsuba_latlong(mi, write_ply(tmp_path / "wall.ply", wall), width, probe)
+    ours = render_latlong(wall, probe, width)
+
+    d = latlong_directions(width, width // 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        reach = np.where(d[..., 0] > 1e-6, 0.5 / d[..., 0], np.inf)  # along the ray to x = 0.5
+    hit_y, hit_z = reach * d[..., 1], reach * d[..., 2]
+    off = np.hypot(np.maximum(np.abs(hit_y) - 0.4, 0), np.maximum(np.abs(hit_z) - 0.45, 0))
+    on_wall = (np.abs(hit_y) < 1.1) & (np.abs(hit_z) < 1.1)
+    weight = latlong_solid_angles(width, width // 2)
+
+    def ratio(mask: np.ndarray) -> float:
+        return float(((ours @ LUMA) * weight)[mask].sum() / ((theirs @ LUMA) * weight)[mask].sum())
+
+    assert abs(ratio(on_wall & (off == 0)) - 1) < 0.02  # the window itself
+    assert ratio(on_wall & (off > 0.3)) < 1.7  # measured 1.47 (cube faces: 3.23)

@@ -68,7 +68,7 @@ def test_latlong_drawn_in_another_frames_axes():
 
 def test_cube_layout_faces_and_radiance_unclamped(tmp_path):
     scene = beacons()
-    scene.sh[0, 0] *= 20000  # red beacon far above the half range (65504)
+    scene.sh[0, 0] *= 100000  # red beacon far above the half range (65504)
     files = render_probe(scene, (0, 0, 0), tmp_path / "p.exr", width=64, cube=True,
                          faces=True)
     header = OpenEXR.File(str(files.cube)).header()

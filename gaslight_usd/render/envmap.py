@@ -11,29 +11,16 @@ face is a pinhole camera with f = (size - 1) / 2 and principal point size / 2
     +X: (+Z, -Y, +X)   -X: (-Z, -Y, -X)   +Y: (+X, -Z, +Y)
     -Y: (+X, +Z, -Y)   +Z: (-X, -Y, +Z)   -Z: (+X, -Y, -Z)
 
-Lat-long panoramas follow :mod:`gaslight_usd.cameras` (OpenEXR envmap=latlong)
-and are resampled bilinearly from 14 views (the six cube faces and eight views
-towards the cube's corners, each a 90 degree face camera at a size that does
-not under-sample the panorama: face size >= width / pi + 2); every direction
-blends the views whose axes lie within 40 degrees of it (one is always within
-35, where the cube alone reaches 55). Why: splats are drawn with a linearised
-(EWA) projection and sorted by depth along each view's axis, both exact only
-near that axis. Against Mitsuba's per-ray ray-marched ellipsoids
-(tests/consumers/mitsuba_numbers.py and test_consumers_mitsuba.py): a closed
-shell of overlapping 7 degree splats with a 20x brighter cap gets 0.96 of
-Mitsuba's power (0.72 from the cube alone), and the example's probe relight
-PSNR rises 0.8 dB (median of 3); single isolated 8 degree splats are mixed:
-on a cube corner 1.11x (was 1.87x), on a seam 1.37x (1.35x), 30 degrees off a
-face axis 1.28x (1.12x).
+Lat-long panoramas follow :mod:`gaslight_usd.cameras` (OpenEXR envmap=latlong).
+Both are drawn through many narrow views and resampled (:mod:`.sphere_views`: why a
+90 degree face drawn directly gets large splats near the probe wrong), every pixel
+an area average of sub-pixel directions (:func:`latlong_supersample`).
 
-Splats whose centre lies behind a face, or nearer to the probe than ``near``
-along the face's axis, are skipped by that face (a splat is never clipped in
-part). So a probe placed inside a splat does not see that splat, and a splat
-right next to the probe (closer than ``near``) is left out rather than
-smeared over the whole sphere by the projection's linearisation. Splats far
-off a face's axis are drawn by the face that sees them best; near face seams
-their footprint comes from the clamped EWA Jacobian (as in 3DGS), so large
-splats close to the probe may show small seams.
+Splats whose centre lies nearer to the probe than ``near`` along a view's axis, or
+behind it, are skipped by that view (a splat is never clipped in part). So a probe
+placed inside a splat does not see that splat, and a splat right next to the probe
+is left out rather than smeared over the whole sphere by the projection's
+linearisation.
 """
 
 from __future__ import annotations
@@ -56,6 +43,8 @@ from ..cameras import (
 )
 from ..splats import SplatScene
 from . import SplatParams, render
+from .many import render_many
+from .sphere_views import Feed, feeds, sphere_views
 
 PROBE_NEAR = 1e-3
 
@@ -81,64 +70,68 @@ def _params(scene: SplatScene | SplatParams, device: str) -> SplatParams:
 
 
 def render_cube(scene: SplatScene | SplatParams, position, size: int, device: str = "cpu",
-                near: float = PROBE_NEAR) -> np.ndarray:
-    """Cube map (6, size, size, 3) float32 linear HDR seen from ``position``."""
-    params = _params(scene, device)
-    faces = []
-    with torch.no_grad():
-        for cam in cube_face_cameras(position, size):
-            faces.append(render(params, cam, background=0.0, near=near).image.cpu().numpy())
-    return np.stack(faces).astype(np.float32)
+                near: float = PROBE_NEAR, supersample: int | None = None) -> np.ndarray:
+    """Cube map (6, size, size, 3) float32 linear HDR seen from ``position``.
 
-
-def latlong_face_size(width: int) -> int:
-    """Cube face size whose centre pixels are no wider than the lat-long's."""
-    return int(math.ceil(width / math.pi)) + 2
-
-
-def _corner_basis(forward: np.ndarray) -> np.ndarray:
-    """(3, 3) rows image right, image down, forward for a view along ``forward``."""
-    right = np.cross(np.array([0.0, 1.0, 0.0]), forward)
-    right /= np.linalg.norm(right)
-    return np.stack([right, np.cross(forward, right), forward])
-
-
-CORNER_AXES = np.array([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)],
-                       np.float64) / math.sqrt(3.0)
-
-
-BLEND_DEG = 40.0
-"""Views within this angle of a direction are blended into it (every direction has
-one within 35 degrees), weighted by (cos angle - cos BLEND_DEG)^2: no hard seams."""
+    ``supersample``: sub-pixels per axis (default: as a lat-long of four faces' width)."""
+    if size < 2:
+        raise ValueError(f"cube face size must be at least 2, got {size}")
+    s = latlong_supersample(4 * size) if supersample is None else max(1, int(supersample))
+    views, fed = _cube_lookup(int(size), s)
+    pos = np.asarray(position, np.float64).reshape(3)
+    out = _draw(_params(scene, device), pos, views, fed, 6 * (size * s) ** 2, near, None)
+    out = out.reshape(6, size, s, size, s, 3).mean(axis=(2, 4), dtype=np.float64)
+    return out.astype(np.float32)
 
 
 @lru_cache(maxsize=4)
-def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[tuple[np.ndarray, ...]]]:
-    """The 14 views (at the origin) and, per view, the lat-long pixels it feeds:
-    (flat pixel indices, continuous x, continuous y, weight)."""
-    size = latlong_face_size(width)
-    dirs = latlong_directions(width, width // 2).reshape(-1, 3).astype(np.float64)
-    f = (size - 1) / 2.0
-    cams = cube_face_cameras(np.zeros(3), size) + [
-        PinholeCamera(size, size, f, f, size / 2.0, size / 2.0, _corner_basis(a), np.zeros(3),
-                      name=f"corner{k}") for k, a in enumerate(CORNER_AXES)]
-    limit = math.cos(math.radians(BLEND_DEG))
-    feeds, total = [], np.zeros(len(dirs))
-    for cam in cams:
-        R = np.asarray(cam.R, np.float64)
-        # the view's axis first: only the directions within BLEND_DEG of it (an eighth
-        # of the sphere) are projected (a 2048-wide lookup 6x faster than projecting all)
-        idx = np.flatnonzero(dirs @ R[2] > limit)
-        local = dirs[idx] @ R.T
-        z = local[:, 2]
-        x = f * local[:, 0] / z + size / 2.0
-        y = f * local[:, 1] / z + size / 2.0
-        w = (z - limit) ** 2
-        total[idx] += w
-        feeds.append((idx, np.clip(x, 0.5, size - 0.5), np.clip(y, 0.5, size - 0.5), w))
-    feeds = [(idx, x, y, (w / total[idx]).astype(np.float32)[:, None])
-             for idx, x, y, w in feeds]
-    return cams, feeds
+def _latlong_lookup(width: int) -> tuple[list[PinholeCamera], list[Feed]]:
+    """The views (at the origin) and what each feeds of a lat-long ``width`` wide."""
+    views = sphere_views(2.0 * math.pi / width)
+    return views, feeds(views, latlong_directions(width, width // 2).reshape(-1, 3))
+
+
+@lru_cache(maxsize=4)
+def _cube_lookup(size: int, s: int) -> tuple[list[PinholeCamera], list[Feed]]:
+    """The views and what each feeds of a cube map's faces at ``s`` x ``s`` sub-pixels
+    a pixel: face k's sub-pixel (row, col) is direction ``k * (size s)^2 + row * size s
+    + col``. A face's pixel centres span ``(size - 1) / 2`` of focal length (OpenEXR)."""
+    fine = size * s
+    sub = (np.arange(fine) + 0.5) / s  # sub-pixel centres in face pixels
+    local = (sub - size / 2.0) / ((size - 1) / 2.0)
+    gx, gy = np.meshgrid(local, local)
+    cam_dirs = np.stack([gx, gy, np.ones_like(gx)], axis=-1).reshape(-1, 3)
+    dirs = np.concatenate([cam_dirs @ np.stack(CUBE_FACE_AXES[name]) for name in CUBE_FACES])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    views = sphere_views(2.0 / ((size - 1) * s))
+    return views, feeds(views, dirs)
+
+
+VIEWS_PER_PASS = 24
+"""Views drawn together on the CPU (:func:`.many.render_many`): bounds the images held."""
+
+
+def _draw(params: SplatParams, pos: np.ndarray, views: list[PinholeCamera],
+          fed: list[Feed], count: int, near: float, rotation: np.ndarray | None
+          ) -> np.ndarray:
+    """(count, 3) float32: every direction the views feed, seen from ``pos``."""
+    placed = []
+    for view in views:
+        rot = np.asarray(view.R) if rotation is None else np.asarray(view.R) @ rotation
+        placed.append(replace(view, R=rot, t=-rot @ pos))
+    out = np.zeros((count, 3), np.float32)
+    many = params.means.device.type == "cpu" and params.means.dtype == torch.float32
+    with torch.no_grad():
+        for start in range(0, len(placed), VIEWS_PER_PASS):
+            group = placed[start:start + VIEWS_PER_PASS]
+            if many:
+                images = render_many(params, group, near=near)
+            else:
+                images = [render(params, v, background=0.0, near=near).image.cpu().numpy()
+                          for v in group]
+            for image, feed in zip(images, fed[start:start + VIEWS_PER_PASS], strict=True):
+                out[feed.index] += feed.weight * bilinear(image, feed.x, feed.y, wrap_x=False)
+    return out
 
 
 SAMPLING_WIDTH = 2048
@@ -218,14 +211,8 @@ def _fine_key(params: SplatParams, pos: np.ndarray, fine: int, near: float,
 def _draw_fine(params: SplatParams, pos: np.ndarray, fine: int, near: float,
                rotation: np.ndarray | None) -> np.ndarray:
     """(fine // 2, fine, 3) float32 lat-long, one lookup per pixel."""
-    cams, feeds = _latlong_lookup(fine)
-    out = np.zeros((fine // 2 * fine, 3), np.float32)
-    with torch.no_grad():
-        for cam, (idx, x, y, w) in zip(cams, feeds, strict=True):
-            rot = np.asarray(cam.R) if rotation is None else np.asarray(cam.R) @ rotation
-            placed = replace(cam, R=rot, t=-rot @ pos)
-            image = render(params, placed, background=0.0, near=near).image.cpu().numpy()
-            out[idx] += w * bilinear(image, x, y, wrap_x=False)
+    views, fed = _latlong_lookup(fine)
+    out = _draw(params, pos, views, fed, fine // 2 * fine, near, rotation)
     return out.reshape(fine // 2, fine, 3)
 
 
