@@ -179,18 +179,23 @@ class PeakMap:
     white: float | None = None
     """The view's own white at full size (the median of its clip floors), None when it
     clipped nothing."""
+    clipped: np.ndarray | None = None
+    """(h, w) bool: the blocks holding a pixel the photo clipped; None: not known."""
 
 
-def peak_map(image: np.ndarray, weights: np.ndarray, white: float | None) -> PeakMap:
+def peak_map(image: np.ndarray, weights: np.ndarray, white: float | None,
+             clipped: np.ndarray | None = None) -> PeakMap:
     """``image`` (H, W, 3) linear HDR as a :class:`PeakMap`; ``white``: its own white
-    (specks over it are removed, :func:`without_specks`; None: none removed)."""
+    (specks over it are removed, :func:`without_specks`; None: none removed);
+    ``clipped``: (H, W) bool, the pixels the photo clipped."""
     lum = np.asarray(image, np.float32) @ np.asarray(weights, np.float32)
     if white is not None and white > 0:
         lum = without_specks(lum / np.float32(white)) * np.float32(white)
     peaks, k = block_max(lum)
     own = float(white) if white is not None and white > 0 else None
+    held = None if clipped is None else block_max(np.asarray(clipped, np.float32))[0] > 0
     return PeakMap(peaks.astype(np.float32), k, (int(image.shape[1]), int(image.shape[0])),
-                   own)
+                   own, held)
 
 
 def sight_lights(cameras: list[PinholeCamera], images: Sequence[np.ndarray | PeakMap],

@@ -16,6 +16,7 @@ from gaslight_usd.fit.frame_edge import light_regions
 from gaslight_usd.fit.init import initial_points
 from gaslight_usd.fit.light_seeds import (
     LightSeedPoints,
+    clipped_at,
     find_light_seeds,
     measured_light_seeds,
     seed_points,
@@ -66,6 +67,31 @@ def test_a_clipped_lamp_is_placed_from_its_outlines_and_nothing_else_is_outlined
     assert len(pts) == len(cols) > 0
     assert np.linalg.norm(pts - lamp.position, axis=1).max() <= lamp.size + 1e-9
     assert (cols @ Y709).min() >= WHITES[lamp.views].min() * 0.99
+
+
+def test_a_view_that_clipped_the_lamp_but_filled_it_under_its_white_is_not_against_it():
+    """The uplift may fill a clipped bulb at its clip level, under the view's white (the
+    median of its clip floors): that view's outline misses the bulb. Read as "framed,
+    not clipped" it made the bulb a hot spot (the chain bench's ``bulb:11``); with the
+    photos' clip masks it says nothing either way and the bulb stays outlined."""
+    cams, views = _clipped_views()
+    masks = [(im @ Y709) >= 0.999 * w for im, w in zip(views, WHITES, strict=True)]
+    lamp = next(s for s in find_light_seeds(cams, views, WHITES, Y709) if s.share >= 1.0)
+    v = lamp.views[0]
+    uv, _ = cams[v].project(lamp.position[None])
+    ys, xs = np.mgrid[0:views[v].shape[0], 0:views[v].shape[1]]
+    near = np.hypot(xs + 0.5 - uv[0, 0], ys + 0.5 - uv[0, 1]) < 12
+    views[v] = np.where((near & masks[v])[..., None], 0.97 * WHITES[v], views[v]).astype(
+        np.float32)
+    plain = find_light_seeds(cams, views, WHITES, Y709)
+    assert not any(s.share >= 1.0 and np.linalg.norm(s.position - LAMP) < 0.1 for s in plain)
+    peaks = [peak_map(im, Y709, w, m) for im, w, m in zip(views, WHITES, masks, strict=True)]
+    assert clipped_at(lamp.position[None], cams, peaks)[0, v]
+    assert not clipped_at(lamp.position[None], cams, views).any()  # no masks: not known
+    masked = find_light_seeds(cams, peaks, WHITES, Y709)
+    outlined = [s for s in masked if s.share >= 1.0]
+    assert len(outlined) == 1 and np.linalg.norm(outlined[0].position - LAMP) < 0.05
+    assert v not in outlined[0].views  # held by the others, not counted against by v
 
 
 def test_noise_specks_over_the_white_place_no_lights():

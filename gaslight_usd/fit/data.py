@@ -266,7 +266,7 @@ def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: 
     floor = read_channel(path, CLIP_FLOOR_CHANNEL)
     weights = luminance_weights(img.colour_space, fallback=True)
     if floor is not None and np.any(floor > 0):
-        peaks = peak_map(full, weights, float(np.median(floor[floor > 0])))
+        peaks = peak_map(full, weights, float(np.median(floor[floor > 0])), floor > 0)
         floor = fit_floor(floor, full, weights, size, downscale)
     else:
         peaks = peak_map(full, weights, None)

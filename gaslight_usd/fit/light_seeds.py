@@ -13,7 +13,8 @@ view over its own white). Two such cones from views at least
 :data:`gaslight_usd.sightings.MIN_BASELINE_DEG` apart whose centroid rays meet inside
 both cones give a candidate point; a candidate stands when at least :data:`MIN_VIEWS`
 views, and :data:`MIN_SUPPORT_SHARE` of the views that frame it (a view where it lies
-in a cut or broad region says nothing), hold it: a bulb is seen wherever it is framed,
+in a cut or broad region says nothing, nor one whose photo clipped it there but whose
+outline missed it: :func:`clipped_at`), hold it: a bulb is seen wherever it is framed,
 bar an occluder; two specks of noise meet by chance and no third view agrees. Stood
 candidates are taken most-agreed first (share, then views), each placed where its
 holding views' rays meet (least squares), and the others within :data:`MERGE_SIZES`
@@ -109,16 +110,47 @@ def framing(points: np.ndarray, cameras: list[PinholeCamera],
 
 
 def _counted_framing(sightings: Sightings, compact: np.ndarray, points: np.ndarray,
-                     cameras: list[PinholeCamera], held: np.ndarray) -> np.ndarray:
+                     cameras: list[PinholeCamera], held: np.ndarray,
+                     light_views: list[np.ndarray | PeakMap] | None = None) -> np.ndarray:
     """(N, V) bool: the views that count for or against each point: those whose
     compact outlines hold it (``held``), and those that frame it and see no light
-    there at all (a view where it lies in a cut or broad region says nothing)."""
+    there at all (a view where it lies in a cut or broad region says nothing, nor one
+    whose photo clipped it there: :func:`clipped_at`)."""
     others = np.setdiff1d(np.arange(sightings.count), compact)
     if len(others):
         in_other, _ = _held_by_view(sightings, others, points, len(cameras))
     else:
         in_other = np.zeros_like(held)
-    return held | (framing(points, cameras) & ~in_other)
+    against = framing(points, cameras) & ~in_other
+    if light_views is not None:
+        against &= ~clipped_at(points, cameras, light_views)
+    return held | against
+
+
+def clipped_at(points: np.ndarray, cameras: list[PinholeCamera],
+               light_views: list[np.ndarray | PeakMap]) -> np.ndarray:
+    """(N, V) bool: each view's photo clipped the block where each point lies.
+
+    Such a view says the point is over its white even where the outline missed it:
+    the uplift may fill a clipped region at its clip level, and then half its pixels lie
+    under the view's white (the median of its clip floors) and a bulb a few pixels across
+    breaks into specks. Counted against the bulb, that view made it "not clipped wherever
+    framed" and it vanished from the lights (the chain bench's ``bulb:11``, one view of
+    the four framing its bulb)."""
+    out = np.zeros((len(points), len(cameras)), bool)
+    for v, (cam, view) in enumerate(zip(cameras, light_views, strict=True)):
+        if not isinstance(view, PeakMap) or view.clipped is None:
+            continue
+        uv, z = cam.project(points)
+        sx = view.block * cam.width / view.size[0]
+        sy = view.block * cam.height / view.size[1]
+        h, w = view.clipped.shape
+        with np.errstate(invalid="ignore"):
+            bx, by = np.floor(uv[:, 0] / sx), np.floor(uv[:, 1] / sy)
+        inside = (z > 0) & (bx >= 0) & (bx < w) & (by >= 0) & (by < h)
+        idx = np.flatnonzero(inside)
+        out[idx, v] = view.clipped[by[idx].astype(int), bx[idx].astype(int)]
+    return out
 
 
 def _held_by_view(sightings: Sightings, regions: np.ndarray, points: np.ndarray,
@@ -134,8 +166,11 @@ def _held_by_view(sightings: Sightings, regions: np.ndarray, points: np.ndarray,
     return ((miss <= 1.0) @ onehot) > 0, miss
 
 
-def seed_lights(sightings: Sightings, cameras: list[PinholeCamera]) -> list[LightSeed]:
-    """The compact lights the outlines agree on (module docstring)."""
+def seed_lights(sightings: Sightings, cameras: list[PinholeCamera],
+                light_views: list[np.ndarray | PeakMap] | None = None) -> list[LightSeed]:
+    """The compact lights the outlines agree on (module docstring); ``light_views``
+    (full-size peaks with their clip masks) let the views that clipped a place count
+    neither for nor against it (:func:`clipped_at`)."""
     compact = np.flatnonzero(sightings.whole & (sightings.radii <= math.radians(MAX_CONE_DEG)))
     if len(compact) < MIN_VIEWS:
         return []
@@ -159,7 +194,7 @@ def seed_lights(sightings: Sightings, cameras: list[PinholeCamera]) -> list[Ligh
     if not len(points):
         return []
     held, _ = _held_by_view(sightings, compact, points, len(cameras))
-    framed = _counted_framing(sightings, compact, points, cameras, held)
+    framed = _counted_framing(sightings, compact, points, cameras, held, light_views)
     support = held.sum(1)
     stands = (support >= MIN_VIEWS) & (support >= MIN_SUPPORT_SHARE * framed.sum(1))
     # most agreed first: the share of framing views that hold it, then their number (a
@@ -172,7 +207,7 @@ def seed_lights(sightings: Sightings, cameras: list[PinholeCamera]) -> list[Ligh
     for i in order:
         if taken[i]:
             continue
-        seed = _place(sightings, compact, points[i], cameras)
+        seed = _place(sightings, compact, points[i], cameras, light_views)
         if seed is None:
             taken[i] = True
             continue
@@ -184,7 +219,8 @@ def seed_lights(sightings: Sightings, cameras: list[PinholeCamera]) -> list[Ligh
 
 
 def _place(sightings: Sightings, compact: np.ndarray, point: np.ndarray,
-           cameras: list[PinholeCamera]) -> LightSeed | None:
+           cameras: list[PinholeCamera], light_views: list[np.ndarray | PeakMap] | None
+           ) -> LightSeed | None:
     """The light at a candidate: per holding view its best-centred outline, the point
     nearest their rays, its size; None when that point leaves a holding cone."""
     _, miss = _held_by_view(sightings, compact, point[None], len(cameras))
@@ -203,7 +239,7 @@ def _place(sightings: Sightings, compact: np.ndarray, point: np.ndarray,
     held, _ = _held_by_view(sightings, regions, placed[None], len(cameras))
     if int(held.sum()) < MIN_VIEWS:
         return None
-    framed = _counted_framing(sightings, compact, placed[None], cameras, held)[0]
+    framed = _counted_framing(sightings, compact, placed[None], cameras, held, light_views)[0]
     size = float(np.median(np.linalg.norm(placed - o, axis=1) * np.tan(sightings.radii[regions])))
     return LightSeed(placed, size, [int(v) for v in np.flatnonzero(held[0])],
                      int(framed.sum()))
@@ -293,7 +329,7 @@ def find_light_seeds(cameras: list[PinholeCamera], light_views: list[np.ndarray 
     (:func:`gaslight_usd.sightings.view_whites`) place, found in ``light_views``
     (full-size peaks, :meth:`FitData.light_views`; module docstring)."""
     luma = np.asarray(y_weights, np.float64)
-    return seed_lights(sight_lights(cameras, light_views, whites, luma), cameras)
+    return seed_lights(sight_lights(cameras, light_views, whites, luma), cameras, light_views)
 
 
 def measured_light_seeds(cameras: list[PinholeCamera],
