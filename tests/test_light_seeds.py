@@ -92,6 +92,11 @@ def test_a_view_that_clipped_the_lamp_but_filled_it_under_its_white_is_not_again
     outlined = [s for s in masked if s.share >= 1.0]
     assert len(outlined) == 1 and np.linalg.norm(outlined[0].position - LAMP) < 0.05
     assert v not in outlined[0].views  # held by the others, not counted against by v
+    # clipped well under the white (one colour channel, a pale surface): still against
+    views[v] = np.where((near & masks[v])[..., None], 0.8 * WHITES[v], views[v]).astype(
+        np.float32)
+    peaks = [peak_map(im, Y709, w, m) for im, w, m in zip(views, WHITES, masks, strict=True)]
+    assert not clipped_at(lamp.position[None], cams, peaks)[0, v]
 
 
 def test_noise_specks_over_the_white_place_no_lights():

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
@@ -66,6 +67,9 @@ times the views' median luminance is a measured light (:func:`measured_light_see
 the chain bench's bare bulb is about 50,000 times it; at 64 its rooms' true HDR views
 give the bulb, one of two ceiling panels, the example's lamp, and the shaded lamp's
 opening with a speck above it (docs/measurements.md, session 33)."""
+CLIPPED_AT_WHITE = 0.95
+"""A view whose photo clipped a place and whose peaks there reach this share of its white
+counts neither for nor against a light there (:func:`clipped_at`)."""
 FRAME_MARGIN = 0.02
 """A point counts as framed when it projects this share of the width inside the frame
 (a light on the border is cut, and its outline is not whole)."""
@@ -129,27 +133,33 @@ def _counted_framing(sightings: Sightings, compact: np.ndarray, points: np.ndarr
 
 def clipped_at(points: np.ndarray, cameras: list[PinholeCamera],
                light_views: list[np.ndarray | PeakMap]) -> np.ndarray:
-    """(N, V) bool: each view's photo clipped the block where each point lies.
+    """(N, V) bool: each view's photo clipped the block where each point lies, and the
+    uplift left it at about the view's white there (:data:`CLIPPED_AT_WHITE` of it, the
+    most over the blocks round it).
 
-    Such a view says the point is over its white even where the outline missed it:
-    the uplift may fill a clipped region at its clip level, and then half its pixels lie
-    under the view's white (the median of its clip floors) and a bulb a few pixels across
-    breaks into specks. Counted against the bulb, that view made it "not clipped wherever
-    framed" and it vanished from the lights (the chain bench's ``bulb:11``, one view of
-    the four framing its bulb)."""
+    Such a view says the point is as bright as its white even where the outline missed
+    it: the uplift may fill a clipped region at its clip level, and then half its pixels
+    lie under the view's white (the median of its clip floors) and a bulb a few pixels
+    across breaks into specks. Counted against the bulb, that view made it "not clipped
+    wherever framed" and it vanished from the lights (the chain bench's ``bulb:11``, one
+    view of the four framing its bulb). A place clipped in one colour channel is clipped
+    under the white (on the example, a pale object: 0.7-0.85 of it in six views) and
+    still counts against a light there."""
     out = np.zeros((len(points), len(cameras)), bool)
     for v, (cam, view) in enumerate(zip(cameras, light_views, strict=True)):
-        if not isinstance(view, PeakMap) or view.clipped is None:
+        if not isinstance(view, PeakMap) or view.clipped is None or not view.white:
             continue
         uv, z = cam.project(points)
         sx = view.block * cam.width / view.size[0]
         sy = view.block * cam.height / view.size[1]
         h, w = view.clipped.shape
+        ratio = ndimage.maximum_filter(view.peaks / np.float32(view.white), size=3)
+        at_white = view.clipped & (ratio >= CLIPPED_AT_WHITE)
         with np.errstate(invalid="ignore"):
             bx, by = np.floor(uv[:, 0] / sx), np.floor(uv[:, 1] / sy)
         inside = (z > 0) & (bx >= 0) & (bx < w) & (by >= 0) & (by < h)
         idx = np.flatnonzero(inside)
-        out[idx, v] = view.clipped[by[idx].astype(int), bx[idx].astype(int)]
+        out[idx, v] = at_white[by[idx].astype(int), bx[idx].astype(int)]
     return out
 
 
