@@ -278,6 +278,46 @@ def test_a_window_floating_in_the_room_is_put_back_in_its_wall():
     np.testing.assert_array_equal(out.positions[: light[0]], fit.positions[: light[0]])
 
 
+WINDOW_WALL = Plane(np.array([-1.0, 0.0, 0.0]), -2.5, np.array([0.0, -2.0]),
+                    np.array([3.0, 2.0]), np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), 500)
+"""The window's wall as :func:`gaslight_usd.fit.planes.room_box` keeps it."""
+
+
+@pytest.mark.parametrize("planes", [(), (WINDOW_WALL, CEILING)])
+def test_a_window_a_few_centimetres_off_its_wall_goes_onto_the_rooms_plane(planes):
+    """A window fitted 15 cm in front of its wall (under the sealed boundary's share of its
+    distance) stays without the room's planes; given the wall's plane, it goes onto it."""
+    cams, images = _window_views()
+    eye = cams[0].center
+    window = _window()
+    off = window.subset(np.arange(window.count))
+    share = 1.0 - 0.15 / (WINDOW["x"] - eye[0])
+    off.positions = (eye + share * (window.positions - eye)).astype(np.float32)
+    off.log_scales = (window.log_scales + np.log(share)).astype(np.float32)
+    fit = _with(_wall_with_window(), off)
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    out, report = surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
+                                      planes=planes, broad_on_planes=True)
+    light = np.arange(fit.count - window.count, fit.count)
+    x = out.positions[light, 0].astype(np.float64)
+    if planes:  # not unless asked: the fit's first pass leaves them for the weighing
+        kept, _ = surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
+                                      planes=planes)
+        np.testing.assert_array_equal(kept.positions, fit.positions)
+    if not planes:
+        assert report.moved == 0
+        assert np.median(np.abs(x - WINDOW["x"])) > 0.1
+    else:
+        assert report.moved >= 0.9 * window.count
+        assert np.median(np.abs(x - WINDOW["x"])) < 0.02
+        # along a photo's rays, its scales with it: still the window's size in that photo
+        grown = np.exp(out.log_scales[light] - fit.log_scales[light]).astype(np.float64)
+        np.testing.assert_allclose(grown.max(1), grown.min(1), rtol=1e-5)
+        assert 1.0 < float(np.median(grown)) < 1.1
+    np.testing.assert_array_equal(out.positions[: light[0]], fit.positions[: light[0]])
+
+
 def test_a_window_in_its_wall_stays():
     cams, images = _window_views()
     fit = _with(_wall_with_window(), _window())

@@ -80,6 +80,17 @@ BISECTIONS = 6
 OFF_SURFACE_SHARE = 0.1
 """A broad light's splat farther than this share of its distance from the room's
 boundary (in front or behind, along its photo's ray) is moved onto it."""
+PLANE_AGREEMENT_SHARE = 0.1
+"""Where the room's plane (:func:`gaslight_usd.fit.planes.room_box`) that a broad light's
+ray crosses first lies within this share of the splat's distance of the sealed boundary
+along it, that plane is the wall the light is on: the sealed boundary is the wall's first
+visible splats, 5-8 cm in front of it (session 30), no place for a window to the
+centimetre."""
+PLANE_OFF_SHARE = 0.02
+"""...and a broad light's splat farther than this share of its distance off that plane
+is moved onto it. A window's splats left 5-20 cm in front of their wall (under
+:data:`OFF_SURFACE_SHARE` at 2-3 m) are seen from a probe 0.5 m away over a wider angle
+than the window, which the ``bench --suite chain`` probe by the window measures."""
 MIN_LIT_SHARE = 1.0
 """...only where this share of the photos framing the new place show light there: all
 of them (a light moved where some photo saw none contradicts that photo; this also
@@ -290,18 +301,33 @@ def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: n
     return _Moves(idx[go], eye[go], ratio[go], int((ok & ~go).sum()))
 
 
+def _first_plane_along(planes: Sequence[Plane], eye: np.ndarray, pos: np.ndarray
+                       ) -> np.ndarray:
+    """(K,) the distance ratio along ``eye -> pos`` where each ray first crosses one of
+    ``planes`` from its front, ``inf`` where it crosses none."""
+    if not planes:
+        return np.full(len(pos), np.inf)
+    return np.min([plane.crossing(eye, pos) for plane in planes], axis=0)
+
+
 def _off_surface_broad(pos: np.ndarray, idx: np.ndarray, region: np.ndarray,
                        eyes: np.ndarray, space: CaptureSpace, sightings: Sightings,
                        cameras: list[PinholeCamera], views: Sequence[np.ndarray | PeakMap],
-                       whites: np.ndarray, weights: np.ndarray) -> _Moves:
+                       whites: np.ndarray, weights: np.ndarray,
+                       planes: Sequence[Plane] = ()) -> _Moves:
     """Bright splats ``idx`` held only by broad outlines (nearest: ``region``) more than
     :data:`OFF_SURFACE_SHARE` off the sealed boundary along their photo's ray (from
-    ``eyes``, per region), moved onto it where the photos agree."""
+    ``eyes``, per region), moved onto it where the photos agree; where one of the room's
+    ``planes`` is the boundary there (:data:`PLANE_AGREEMENT_SHARE`), onto that plane,
+    from :data:`PLANE_OFF_SHARE` off it."""
     if not len(idx):
         return _Moves.none()
     eye = eyes[region]
     ratio, ok = _boundary_along(space, eye, pos[idx])
-    ok &= np.abs(ratio - 1.0) > OFF_SURFACE_SHARE * ratio
+    wall = _first_plane_along(planes, eye, pos[idx])
+    on_wall = ok & np.isfinite(wall) & (np.abs(wall - ratio) <= PLANE_AGREEMENT_SHARE * ratio)
+    ratio = np.where(on_wall, wall, ratio)
+    ok &= np.abs(ratio - 1.0) > np.where(on_wall, PLANE_OFF_SHARE, OFF_SURFACE_SHARE) * ratio
     target = eye + (pos[idx] - eye) * ratio[:, None]
     # only where the photos that frame the new place show light there (a lit shade
     # hanging in front of a wall stays: photos from the side see the wall behind it)
@@ -329,8 +355,8 @@ their wall, floaters just in front of a camera (the module docstring)."""
 def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
                         views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
                         weights: np.ndarray, sightings: Sightings,
-                        rules: frozenset[str] = RULES, planes: Sequence[Plane] = ()
-                        ) -> tuple[SplatScene, SurfacedLights]:
+                        rules: frozenset[str] = RULES, planes: Sequence[Plane] = (),
+                        broad_on_planes: bool = False) -> tuple[SplatScene, SurfacedLights]:
     """``scene`` with its sunk compact lights and its off-surface broad lights moved
     onto the room's boundary along the photos' rays (module docstring), and what
     moved. ``cameras``: the training views; ``views``: their photos (linear HDR, or
@@ -338,7 +364,10 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     in the scene's units; ``weights``: luminance weights; ``sightings``: the views' light
     regions (:func:`gaslight_usd.sightings.sight_lights`, same views); ``rules``: which
     of :data:`RULES` to apply; ``planes``: the room's box
-    (:func:`gaslight_usd.fit.planes.room_box`), which bounds a sunk light's move."""
+    (:func:`gaslight_usd.fit.planes.room_box`), which bounds a sunk light's move;
+    ``broad_on_planes``: broad lights go onto those planes where they are the boundary
+    (:data:`PLANE_AGREEMENT_SHARE`, :data:`PLANE_OFF_SHARE`), else onto the sealed
+    boundary alone."""
     if not rules <= RULES:
         raise ValueError(f"unknown rules {sorted(rules - RULES)}; known: {sorted(RULES)}")
     lum = scene.base_colours @ np.asarray(weights, np.float32)
@@ -370,7 +399,8 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
                            eyes, space, cameras, sightings, planes)
              if "sunk" in rules else _Moves.none(),
              _off_surface_broad(pos, bright[held_b], near_b[held_b], eyes, space, sightings,
-                                cameras, views, whites, weights)
+                                cameras, views, whites, weights,
+                                planes if broad_on_planes else ())
              if "broad" in rules else _Moves.none()]
     taken = np.concatenate([m.idx for m in moves])
     rest = held_c & ~np.isin(bright, taken)

@@ -641,11 +641,14 @@ class Trainer:
         if self.planes is not None:  # the moved splats' planes are where they are now
             self._assign_planes()
 
-    def _surface_sunk_lights(self, scene: SplatScene, rules: frozenset[str] | None = None
+    def _surface_sunk_lights(self, scene: SplatScene, rules: frozenset[str] | None = None,
+                             broad_on_planes: bool = False
                              ) -> tuple[SplatScene, SurfacedLights]:
         """Compact lights one photo frames sunk behind a surface, broad lights off their
         wall, and lights one photo drew just in front of its camera, moved onto the
-        room's boundary (:mod:`.sunk_lights`; ``rules``: which of them, all by default).
+        room's boundary (:mod:`.sunk_lights`; ``rules``: which of them, all by default;
+        ``broad_on_planes``: broad lights onto the room's planes where those are the
+        boundary).
         Where no view clipped (merged brackets, true HDR views) broad lights stay: the
         photos' light regions over their white say which splats are lights, and without a
         clip level a lit wall round a window is as bright as the window."""
@@ -656,6 +659,8 @@ class Trainer:
         whites = self._view_whites(self.train)
         if whites is None:
             rules = rules - {"broad"}
+            if not rules:
+                return scene, SurfacedLights(0, 0.0, 0.0, 0)
             # the lights are what the single-view check calls bright: "over the white"
             # means "clipped" to the broad rule, which needs a photo's clip level
             level = float(np.median([np.median(self.data.images[i] @ weights)
@@ -666,7 +671,8 @@ class Trainer:
         photos = [self.data.light_views()[i] for i in self.train]
         sightings = sight_lights(views, photos, whites, weights)
         scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings,
-                                              rules=rules, planes=self.room_planes)
+                                              rules=rules, planes=self.room_planes,
+                                              broad_on_planes=broad_on_planes)
         for light in surfaced.placed:  # indices among the training views -> all views
             light.views = [self.train[v] for v in light.views]
         if surfaced.moved:
@@ -734,8 +740,17 @@ class Trainer:
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):
             scene, lights = self._weigh_clipped_lights(scene, backdrop.count, train_floors)
+        # broad lights (windows) left a few centimetres off their wall, onto its plane:
+        # after the weighing, which gathers the rest of the room's light from the fit as
+        # its views left it (moved first, the bench's lamps' factors swung by up to 0.6
+        # stops either way: docs/measurements.md, session 35)
+        on_walls = SurfacedLights(0, 0.0, 0.0, 0)
+        if self.room_planes:
+            scene, on_walls = self._surface_sunk_lights(scene, frozenset({"broad"}),
+                                                        broad_on_planes=True)
         scene, oversized = self._cut_oversized(scene, backdrop.count)
-        if (backdrop.count or lights or surfaced.moved or oversized["splats"]) and self.held:
+        if (backdrop.count or lights or surfaced.moved or on_walls.moved
+                or oversized["splats"]) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
         metrics = {
@@ -758,6 +773,7 @@ class Trainer:
             "fine_power": [light.as_dict() for light in fine],
             "surfaced_lights": {**surfaced.as_dict(), "floaters_moved_midway":
                                 self.floaters_moved},
+            "broad_lights_on_walls": on_walls.as_dict(),
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
             "exposure_outliers": exposure_outliers(
