@@ -207,6 +207,7 @@ def test_at_most_the_gathered_points_are_weighed_and_all_of_few(monkeypatch):
     def used(light):
         return light.details["surface_points"] + light.details["clipped_surface_points"]
 
+    monkeypatch.setattr(power, "GATHERED_POINTS", 320)  # under the toy room's 1024
     _, _, light = _weigh(16.0)
     assert used(light) == power.GATHERED_POINTS
     monkeypatch.setattr(power, "SAMPLE_POINTS", 150)
