@@ -40,7 +40,10 @@ draws it on the same pixels:
   through there). Refused where some photo framing the new place shows
   no light there, and a whole light (the splats of outlines holding splats in common)
   stays where it is when most of its splats are refused: a lit shade hanging in front
-  of a wall is seen against the wall from the side.
+  of a wall is seen against the wall from the side. With ``broad_on_planes`` (the fit's
+  second pass, after the lamps are weighed), where one of the room's planes is that
+  boundary, onto the plane instead, from :data:`PLANE_OFF_SHARE` off it: the sealed
+  boundary is the wall's first splats, a few centimetres in front of the wall.
 
 - a bright splat of a **compact** outline at under :data:`NEAR_SHARE` of the way from
   its photo's camera to the boundary, onto the boundary along its own ray, where every
