@@ -127,11 +127,10 @@ GATHERED_POINTS = 960
 irradiance costs a cube map and an aimed view each); where fewer qualify (a room whose
 photos clip or see few flat surfaces) all are used. Drawing a fixed 400 candidates
 left the shaded-lamp room 55-61 usable points and its factor's spread over the 1.5-stop
-limit in one draw of four (``docs/measurements.md``, session 17); at 1000 candidates
-and 320 gathered a bare bulb's factor swung 0.4-0.9 stops between fits of one room,
-and three times as many (400-435 usable where 310 were) narrowed ``bulb:7``'s lamp from
--0.68..+0.90 to -0.43..+0.53 stops over three fits (``gaslight2usd bench --suite
-chain``; ``docs/measurements.md``, session 35)."""
+limit in one draw of four (``docs/measurements.md``, session 17). Where a fit has more
+usable surface, more points steady a bare bulb's factor from fit to fit: the old caps
+(1000 and 320) let it swing by most of a stop (``gaslight2usd bench --suite chain``;
+``docs/measurements.md``, session 35)."""
 NEIGHBOURS = 32
 """Opaque splats a sample's normal is fitted to (the smallest principal axis). 16 was too
 few on a ``balanced`` fit, whose splats are small: the neighbourhood spans less than the

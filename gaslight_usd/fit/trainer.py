@@ -742,8 +742,8 @@ class Trainer:
             scene, lights = self._weigh_clipped_lights(scene, backdrop.count, train_floors)
         # broad lights (windows) left a few centimetres off their wall, onto its plane:
         # after the weighing, which gathers the rest of the room's light from the fit as
-        # its views left it (moved first, the bench's lamps' factors swung by up to 0.6
-        # stops either way: docs/measurements.md, session 35)
+        # its views left it (moved first, the window's light on the surfaces moved the
+        # lamps' factors: docs/measurements.md, session 35)
         on_walls = SurfacedLights(0, 0.0, 0.0, 0)
         if self.room_planes:
             scene, on_walls = self._surface_sunk_lights(scene, frozenset({"broad"}),
