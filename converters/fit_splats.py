@@ -119,6 +119,11 @@ def fit(ctx: StageContext) -> StageResult:
                         device=opts.device or ctx.settings.device)
     attrs = data.attributes
     metadata = {
+        # what the fit put on its splats: how to draw them (``antialiased``; drawn the
+        # other way, the HDRIs miss the light the fit saw: docs/measurements.md, session
+        # 36), where the photos saw light over the white and the lights their outlines
+        # placed (gaslight_usd.sightings, gaslight_usd.fit.light_seeds: the lights finder's)
+        **result.scene.metadata,
         "colour_space": data.colour_space,
         "exposure_scale": float(attrs.get("gaslight:exposure_scale", 1.0)),
         "reference_ev": attrs.get("gaslight:reference_ev"),
@@ -136,9 +141,6 @@ def fit(ctx: StageContext) -> StageResult:
             "preset": name, "seed": seed, "config": cfg.as_dict(),
         },
         "fit_metrics": result.metrics,
-        # where the photos saw light over the white: the lights finder keeps only lights
-        # there and places those two photos frame whole (gaslight_usd.sightings)
-        "light_sightings": result.scene.metadata.get("light_sightings"),
     }
     if not result.metrics["held_out_views"]:
         ctx.progress.message(

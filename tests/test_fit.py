@@ -61,6 +61,9 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     assert meta["colour_space"] == "Linear Rec.709 (sRGB)"
     assert meta["exposure_scale"] == 1.0
     assert meta["provenance"]["views"][0] == "view_00"
+    # drawn as it was fitted (the presets fit antialiased), with the fit's light evidence
+    assert meta["antialiased"] is True
+    assert "light_sightings" in meta and "light_seeds" in meta
     m = meta["fit_metrics"]
     assert m["splats"] == scene.count <= 3000
     assert m["held_out_views"] == ["view_04"]
