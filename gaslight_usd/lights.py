@@ -30,7 +30,13 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    (:func:`clipped_gain`; the headroom is :data:`CLIPPED_HEADROOM_STOPS` for
    predicted or inferred power). A wall lit by a lamp the uplift left short is
    still explained by that lamp, while a lamp fitted far above white (its fill
-   not short) does not explain a window as bright as a tenth of it.
+   not short) does not explain a window as bright as a tenth of it. A source the
+   fit weighed by the surfaces it lights (its ``fit_metrics.clipped_lights``) is no
+   lower bound: its power is known to the weighing's uncertainty, and it counts only
+   ``2 **`` that much brighter (:func:`weighed_gain`). At the headroom, a bare bulb
+   weighed 10-11 stops over its fill explained the window of its room away, and the
+   rig written from the photos had no window (``gaslight2usd bench --suite chain``,
+   ``light_dist_window``; ``docs/measurements.md``, session 36).
    A cluster within :data:`OUTLINE_REACH` sizes of a light the photos' outlines
    placed clipped in every view that frames it (the fit's ``light_seeds``,
    :mod:`gaslight_usd.fit.light_seeds`) is an emitter without this test: a bare bulb
@@ -506,22 +512,45 @@ def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.
     return connected_components(coo_matrix(near | smear), directed=False)[1], seen_at
 
 
-def _weighed_by_the_fit(light: Light, metadata: Mapping[str, Any]) -> None:
-    """Where the fit weighed this light by the surfaces it lights (its ``clipped_lights``,
-    :mod:`gaslight_usd.fit.power`), the light's power came from there: its splats already
-    carry the factor, and the fit's uncertainty replaces the uplift's."""
+def _weighed_lights(metadata: Mapping[str, Any]) -> list[tuple[np.ndarray, float, Mapping]]:
+    """``(position, radius, entry)`` of each light the fit weighed by the surfaces it
+    lights (its ``fit_metrics.clipped_lights`` whose power was ``inferred`` or ``fused``,
+    :mod:`gaslight_usd.fit.power`); malformed entries are skipped."""
     fit = metadata.get("fit_metrics")
     weighed = fit.get("clipped_lights") if isinstance(fit, Mapping) else None
+    out = []
     for entry in weighed or []:
         if not isinstance(entry, Mapping) or entry.get("power_source") not in (
                 "inferred", "fused"):
             continue
         try:
             where = np.asarray(entry["position"], np.float64).reshape(3)
-            reach = float(entry.get("radius") or 0.0) + light.radius
+            reach = float(entry.get("radius") or 0.0)
+            float(entry["power_uncertainty_stops"])
         except (KeyError, TypeError, ValueError):
             continue
-        if np.linalg.norm(where - light.position) <= max(reach, 1e-6):
+        out.append((where, reach, entry))
+    return out
+
+
+def weighed_gain(positions: np.ndarray, metadata: Mapping[str, Any]) -> np.ndarray:
+    """(N,) how much brighter each splat of a light the fit weighed may be
+    (:func:`_weighed_lights`): ``2 **`` the weighing's uncertainty (stops) within that
+    light's radius; NaN elsewhere (:func:`clipped_gain` holds there)."""
+    out = np.full(len(positions), np.nan)
+    pos = np.asarray(positions, np.float64)
+    for where, reach, entry in _weighed_lights(metadata):
+        near = np.linalg.norm(pos - where, axis=1) <= reach
+        out[near] = np.fmax(out[near], 2.0 ** float(entry["power_uncertainty_stops"]))
+    return out
+
+
+def _weighed_by_the_fit(light: Light, metadata: Mapping[str, Any]) -> None:
+    """Where the fit weighed this light by the surfaces it lights (:func:`_weighed_lights`),
+    the light's power came from there: its splats already carry the factor, and the
+    fit's uncertainty replaces the uplift's."""
+    for where, reach, entry in _weighed_lights(metadata):
+        if np.linalg.norm(where - light.position) <= max(reach + light.radius, 1e-6):
             light.power_source = str(entry["power_source"])
             light.power_uncertainty_stops = round(float(entry["power_uncertainty_stops"]), 3)
             light.test["inferred_factor"] = float(entry.get("factor", 1.0))
@@ -561,6 +590,8 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                                    * area[candidates], labels, outlined)[order]][:MAX_CLUSTERS]
     not_backdrop = ~backdrop
     headroom_gain = clipped_gain(radiance, white, source)
+    known = weighed_gain(scene.positions, scene.metadata)
+    headroom_gain = np.where(np.isfinite(known), known, headroom_gain)
     emitting: list[np.ndarray] = []
     tests: list[dict[str, float]] = []
     positions = scene.positions.astype(np.float64)

@@ -412,6 +412,13 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     result = fit_splats(data, cfg, seed=seed, progress=progress)
     seconds = time.perf_counter() - t0
     metrics = dict(result.metrics)
+    # what the export's lights finder reads (converters/fit_splats.py writes the same):
+    # the HDR method says whether clipped power is a lower bound, the fit's metrics which
+    # lights it weighed
+    result.scene.metadata.update({
+        "exposure_scale": float(data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0),
+        "provenance": {"hdr_method": data.attributes.get("gaslight:method")},
+        "fit_metrics": result.metrics})
     if method == "truth HDR":
         # true radiance, as merged brackets measure it: the lights finder's clipped-source
         # headroom (power unknown, 7 stops) would let the lamp explain the window away
