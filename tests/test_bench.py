@@ -337,6 +337,8 @@ def test_chain_methods_pick_the_planes(monkeypatch, tmp_path):
     assert held[3]["planes"] is not None and len(held[3]["planes"]["planes"]) >= 2
     assert free[3]["planes"] is None
     assert held[2] == free[2] == 1.0  # true radiance either way
+    from gaslight_usd.lights import power_source
+    assert power_source(held[0].metadata) == "measured"  # its lights' power is known
     assert "uplift_fill" not in held[3]  # no uplift, no fill to score
 
 
@@ -354,6 +356,12 @@ def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
     tiny = preset("fast").updated(iterations=6, budget=800, init_points=600,
                                   backdrop_tiles=0, working_size=60, infer_power=False)
     monkeypatch.setattr(suite_chain, "preset", lambda name: tiny)
-    fill = suite_chain.fitted_scene(example, "recursive", tmp_path, "fast", 0)[3]["uplift_fill"]
+    scene, _, _, metrics = suite_chain.fitted_scene(example, "recursive", tmp_path, "fast", 0)
+    fill = metrics["uplift_fill"]
     assert fill["fill_views_lamp"] >= 3 and fill["fill_err_lamp"] < -3.0
     assert fill["fill_views_window"] >= 3 and abs(fill["fill_err_window"]) < 1.5
+    # its lights are scored as the export writes them: clipped power a prediction, and
+    # the fit's own word on the lights it weighed (gaslight_usd.lights)
+    from gaslight_usd.lights import power_source
+    assert power_source(scene.metadata) == "predicted"
+    assert scene.metadata["fit_metrics"]["clipped_lights"] == metrics["clipped_lights"]
