@@ -255,22 +255,23 @@ class ChainRun:
                 self.records.append(record)
                 artifacts[conv.output] = Artifact(conv.output, out_path, record.metadata)
                 continue
-            self.progress.message(f"[{label}] {conv.name}: {conv.description}")
-            # A stage started before with the same fingerprint and killed may continue
-            # its own work (the fit from its checkpoint); with other inputs it starts over.
-            started = state.setdefault("started", {})
-            continues = resume and started.get(conv.step) == key
-            started[conv.step] = key
-            self._save_state(state)
-            ctx = StageContext(inputs=inputs, output=out_path, settings=self.settings,
-                               options=stage_options, progress=self.progress.child(label),
-                               resume=continues)
             t0 = time.perf_counter()
             record = StageRecord(
                 name=conv.step, converter=conv.name,
                 inputs={k.value: str(a.path) for k, a in inputs.items()},
                 output=str(out_path), status="running", seconds=0.0, fingerprint=key)
-            try:
+            try:  # from the stage's first line on, a stop is recorded as this stage's
+                self.progress.message(f"[{label}] {conv.name}: {conv.description}")
+                # A stage started before with the same fingerprint and killed may continue
+                # its own work (the fit from its checkpoint); with other inputs it starts
+                # over.
+                started = state.setdefault("started", {})
+                continues = resume and started.get(conv.step) == key
+                started[conv.step] = key
+                self._save_state(state)
+                ctx = StageContext(inputs=inputs, output=out_path, settings=self.settings,
+                                   options=stage_options, progress=self.progress.child(label),
+                                   resume=continues)
                 result = conv.run(ctx)
             except BaseException as exc:
                 record.status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"

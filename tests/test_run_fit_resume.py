@@ -120,6 +120,36 @@ def test_a_changed_input_or_fresh_run_does_not_resume(posed_views, tmp_path):
     assert seen == [False, False, False, False, False, True]
 
 
+def test_a_stop_as_a_stage_starts_is_recorded_as_that_stage_s(posed_views, tmp_path,
+                                                               monkeypatch):
+    """A SIGTERM that lands just after a stage is announced (while its start is saved,
+    before its converter runs) still leaves ``report.json`` naming the stage
+    interrupted: ``batch`` reads its stages from there."""
+    from gaslight_usd.chain import ChainRun
+    from gaslight_usd.kinds import Artifact, Kind
+    from gaslight_usd.progress import Progress
+    from gaslight_usd.registry import Converter, Registry, Settings, StageResult
+
+    def fit(ctx):
+        raise AssertionError("the stop came first: the converter must not run")
+        return StageResult()
+
+    reg = Registry()
+    reg.add(Converter(name="fit.fake", step="fit", inputs=(Kind.HDR_VIEWS, Kind.POSES),
+                      output=Kind.SPLATS, run=fit, description="fake"))
+
+    def stop(self, state):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ChainRun, "_save_state", stop)
+    runner = ChainRun(tmp_path / "out", Settings.resolved(), reg, Progress(quiet=True))
+    with pytest.raises(KeyboardInterrupt):
+        runner.run([Artifact(Kind.HDR_VIEWS, posed_views / "hdr"),
+                    Artifact(Kind.POSES, posed_views / "sparse")], [Kind.SPLATS])
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert [(s["name"], s["status"]) for s in report["stages"]] == [("fit", "interrupted")]
+
+
 @pytest.mark.slow
 def test_a_view_with_no_pose_is_left_out_and_named(posed_views, tmp_path, capsys):
     hdr = tmp_path / "hdr"
