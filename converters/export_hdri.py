@@ -15,8 +15,14 @@ from gaslight_usd.export_options import HdriOptions
 from gaslight_usd.kinds import Kind
 from gaslight_usd.lights import find_lights
 from gaslight_usd.ply import read_ply
-from gaslight_usd.probe_check import near_light_warning, outside_warning
+from gaslight_usd.probe_check import (
+    near_light_warning,
+    outside_warning,
+    unseen_angles,
+    unseen_light_warning,
+)
 from gaslight_usd.registry import Converter, StageContext, StageResult, options_from
+from gaslight_usd.sightings import Sightings
 
 
 def probe_points(at, scene) -> list[tuple[float, float, float]]:
@@ -56,9 +62,10 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
         out_space = colour.resolve_space(out_space, s.ocio_config)
     written, warnings = [], []
     lights = find_lights(scene)
+    sightings = Sightings.from_metadata(scene.metadata)
     for pos in points:
         found = [outside_warning(pos, scene.positions) if o.at else None,
-                 near_light_warning(pos, lights)]
+                 near_light_warning(pos, lights), unseen_light_warning(pos, lights, sightings)]
         for warning in filter(None, found):
             warnings.append(warning)
             ctx.progress.message(f"warning: {warning}")
@@ -70,8 +77,13 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
                              attributes={"gaslight:source": str(src),
                                          "gaslight:probeChoice": how},
                              device=o.device or s.device)
+        angles = unseen_angles(pos, np.array([lt.position for lt in lights]), sightings)
         written.append({"position": list(pos), "chosen": how,
-                        "files": [str(p) for p in files.all()]})
+                        "files": [str(p) for p in files.all()],
+                        # per light (the lights finder's order, brightest first): how
+                        # far from every photo that saw it this probe sees it
+                        "lights_unseen_deg": [None if not np.isfinite(a) else round(float(a), 1)
+                                              for a in angles]})
         if how.startswith("default"):
             ctx.progress.message(f"probe at {', '.join(f'{v:.3g}' for v in pos)} ({how})")
         ctx.progress.update(i, len(points), probe=str(path))

@@ -1,4 +1,4 @@
-"""Is a probe point where its HDRI can be trusted? Two checks, each a one-line warning.
+"""Is a probe point where its HDRI can be trusted? Three checks, each a one-line warning.
 
 * **Outside the set.** A typo in ``--at`` (a sign, a unit: 135 for 1.35) still
   renders an HDRI, of the set seen from afar: nearly black, or one bright blob. The
@@ -10,6 +10,13 @@
   front of it: harmless from the cameras, but a probe among them sees them close up
   and its HDRI comes out stops too bright. A point closer to a light's centre than
   :data:`NEAR_LIGHT_RADII` of its radii is reported.
+* **A light seen from where no photo saw it.** The splats hold what the photos showed of
+  a light; from a side no photo looked at, its power is the fit's guess (a lamp in a
+  shade, photographed from the side, shows the probe under it a bright opening no photo
+  saw). Per light, the smallest angle at the light between the point and a photo that
+  saw it (a light region of that photo holds it, :mod:`gaslight_usd.sightings`) is
+  reported in the stage's metadata, and a point more than :data:`UNSEEN_LIGHT_DEG` from
+  every such photo is warned about.
 """
 
 from __future__ import annotations
@@ -17,6 +24,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+
+from .sightings import Sightings
 
 CENTRAL_SHARE = 0.96
 FAR_FRACTION = 0.25
@@ -26,6 +35,58 @@ room never tuned on, the chain bench's probe by the window lies inside this reac
 fitted window and its irradiance is far off even from true HDR views, while its probes
 further out and the bundled example's (all well outside it) are not (``gaslight2usd bench
 --suite chain --scene panels``; figures in docs/measurements.md)."""
+
+
+UNSEEN_LIGHT_DEG = 30.0
+"""A probe that sees a light from further than this (degrees, at the light) from every
+photo that saw it is warned about. On the chain bench's rooms fitted from their true
+HDR views (no level to guess: what is left is the fit's shape), a light's power at a
+probe within it was off by a median 0.1-0.2 stops, beyond it by 0.6-0.7 and up to 3.7
+(a lamp in a shade, photographed from the side, seen from below)
+(``gaslight2usd bench --suite chain``, its ``unseen_deg_<light>`` columns beside
+``power_err_<light>``; docs/measurements.md)."""
+
+
+def unseen_angles(point: Sequence[float], positions: np.ndarray,
+                  sightings: Sightings | None) -> np.ndarray:
+    """``(L,)`` per light at ``positions`` ``(L, 3)``: the smallest angle (degrees), at
+    the light, between ``point`` and a camera whose photo saw light over the white there
+    (one of its ``sightings``' regions holds the light); NaN where none did or nothing
+    is known of the photos (``sightings`` None)."""
+    positions = np.asarray(positions, np.float64).reshape(-1, 3)
+    out = np.full(len(positions), np.nan)
+    if sightings is None or not sightings.count or not len(positions):
+        return out
+    p = np.asarray(point, np.float64)
+    held = sightings.holding(positions)  # (L, R)
+    to_point = p[None] - positions
+    to_point /= np.maximum(np.linalg.norm(to_point, axis=1, keepdims=True), 1e-12)
+    to_cams = sightings.origins[sightings.view][None] - positions[:, None]  # (L, R, 3)
+    to_cams /= np.maximum(np.linalg.norm(to_cams, axis=2, keepdims=True), 1e-12)
+    cos = np.where(held, np.einsum("lrk,lk->lr", to_cams, to_point), -np.inf)
+    best = cos.max(axis=1)
+    seen = np.isfinite(best)
+    out[seen] = np.degrees(np.arccos(np.clip(best[seen], -1.0, 1.0)))
+    return out
+
+
+def unseen_light_warning(point: Sequence[float], lights: Sequence,
+                         sightings: Sightings | None) -> str | None:
+    """A one-line warning when ``point`` sees one of ``lights`` (objects with
+    ``position``) from more than :data:`UNSEEN_LIGHT_DEG` off every photo that saw it,
+    naming the worst; else None."""
+    if not lights:
+        return None
+    angles = unseen_angles(point, np.array([light.position for light in lights]), sightings)
+    if not np.any(angles > UNSEEN_LIGHT_DEG):
+        return None
+    worst = int(np.nanargmax(angles))
+    where = ",".join(f"{v:.4g}" for v in np.asarray(point, np.float64))
+    centre = ", ".join(f"{v:.3g}" for v in lights[worst].position)
+    return (f"probe point {where} sees a light (centre {centre}) from {angles[worst]:.0f} "
+            "degrees off every photo that saw it: its power there is the fit's guess, not "
+            "a measurement (a shade's opening, a panel's face seen from a side no photo "
+            "took); photograph the light from near the probe")
 
 
 def splat_box(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

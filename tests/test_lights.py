@@ -362,6 +362,60 @@ def test_a_probe_within_a_lights_reach_is_warned_about(tmp_path, capsys):
     assert "warning" not in capsys.readouterr().err
 
 
+def test_a_probe_that_sees_a_light_from_where_no_photo_did_is_warned_about(tmp_path, capsys):
+    """Half the ring of cameras saw the lamp (light regions holding it); a probe on their
+    side is fine, one beyond the lamp from all of them is warned about, with the angle
+    the stage's metadata records; a light no photo's region holds gives no angle."""
+    from gaslight_usd.cli.main import main
+    from gaslight_usd.ply import write_ply
+    from gaslight_usd.probe_check import UNSEEN_LIGHT_DEG, unseen_angles, unseen_light_warning
+    from gaslight_usd.sightings import Sightings
+
+    scene, _ = room_scene()
+    cams = np.asarray(scene.metadata["cameras"]["centres"])
+    saw = np.arange(6)  # the cameras at angles 0..150 degrees round the ring
+    axes = LAMP[None] - cams[saw]
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    sightings = Sightings(cams, saw, axes, np.full(6, np.radians(3.0)), np.ones(6, bool),
+                          np.ones(6), 1.0)
+    scene.metadata = {**scene.metadata, "light_sightings": sightings.as_dict()}
+    lights = find_lights(scene)
+
+    def angle_by_hand(point, light):  # the smallest angle over the cameras that saw it
+        u = (point - light) / np.linalg.norm(point - light)
+        return min(np.degrees(np.arccos(np.clip(
+            (c - light) @ u / np.linalg.norm(c - light), -1, 1))) for c in cams[saw])
+
+    towards = LAMP + 0.5 * (cams[2] - LAMP) / np.linalg.norm(cams[2] - LAMP)
+    side = cams[saw].mean(0) - LAMP
+    side[1] = 0.0
+    away = LAMP - side / np.linalg.norm(side) + [0.0, -0.3, 0.0]  # 1 m beyond, a little lower
+    got = unseen_angles(away, np.array([LAMP, WINDOW]), sightings)
+    assert got.shape == (2,) and np.isnan(got[1])  # no photo's region holds the window
+    for point in (towards, away):
+        np.testing.assert_allclose(unseen_angles(point, LAMP[None], sightings)[0],
+                                   angle_by_hand(point, LAMP), atol=1e-6)
+    assert unseen_angles(towards, LAMP[None], sightings)[0] < 1.0
+    far = unseen_angles(away, LAMP[None], sightings)[0]
+    assert far > UNSEEN_LIGHT_DEG
+    assert unseen_light_warning(towards, lights, sightings) is None
+    text = unseen_light_warning(away, lights, sightings)
+    assert text is not None and f"from {far:.0f} degrees off every photo that saw it" in text
+    assert unseen_light_warning(away, lights, None) is None  # nothing known of the photos
+
+    ply = write_ply(tmp_path / "room.ply", scene)
+    at = ",".join(f"{v:.4f}" for v in away)
+    assert main(["hdri", str(ply), "--at", at, "-o", str(tmp_path / "w.exr"), "--size", "16",
+                 "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert any("off every photo that saw it" in w for w in report["warnings"])
+    lamp_index = int(np.argmin([np.linalg.norm(lt.position - LAMP) for lt in lights]))
+    unseen = report["probes"][0]["lights_unseen_deg"]
+    assert len(unseen) == len(lights)
+    assert abs(unseen[lamp_index] - angle_by_hand(np.asarray(away.round(4)),
+                                                  lights[lamp_index].position)) < 0.1
+
+
 def test_a_light_the_fit_weighed_says_its_power_was_inferred():
     """The fit's ``clipped_lights`` (gaslight_usd.fit.power) name where each clipped light's
     power came from; the export's lights take it from there, not from the HDR method."""

@@ -34,6 +34,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``pu21_psnr_peak`` -- PU21-PSNR with the truth's peak at 1000 cd/m^2;
 * ``power_err_<light>`` -- log2(found / true) of the light arriving at the probe from
   each true light's direction (a cone 5 degrees wider than the light), in stops;
+* ``unseen_deg_<light>`` -- how far the probe sees each true light from every photo that
+  saw it (degrees at the light, from the fit's light sightings: what ``hdri`` warns
+  about, :mod:`gaslight_usd.probe_check`);
 * ``light_dist_<light>``, ``lights_found``, ``stray_light_share`` -- where the lights
   the export would write are (:func:`light_placement`), the same on each probe's row;
   ``light_spread_<light>``, ``floating_share`` -- where their splats are
@@ -75,7 +78,9 @@ from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
 from ..fit import fit_splats, load_fit_data, preset
 from ..imageio import read_image
 from ..locate import example_room, find_data
+from ..probe_check import unseen_angles
 from ..render.envmap import render_latlong
+from ..sightings import Sightings
 from ..splats import SplatScene
 from .uplift_fill import fill_errors
 
@@ -428,6 +433,18 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
     return result.scene, seconds, scale, metrics
 
 
+def unseen_columns(scene: SplatScene, lights: list[dict[str, Any]], position: np.ndarray
+                   ) -> dict[str, float]:
+    """``unseen_deg_<light>``: how far (degrees, at the true light) the probe is from every
+    photo that saw the light, as the fit's light sightings tell it (what ``hdri`` warns
+    about past :data:`gaslight_usd.probe_check.UNSEEN_LIGHT_DEG`); NaN where no photo's
+    light region holds the light."""
+    centres = np.array([light["center"] for light in lights], np.float64)
+    angles = unseen_angles(position, centres, Sightings.from_metadata(scene.metadata))
+    return {f"unseen_deg_{light['name']}": float(a)
+            for light, a in zip(lights, angles, strict=True)}
+
+
 def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
                renderer=None) -> list[dict[str, Any]]:
     """One row per probe: the scores of the module docstring."""
@@ -445,7 +462,8 @@ def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
         pano = np.maximum(pano * np.float32(scale), 0.0)
         row: dict[str, Any] = {"probe": k, "irradiance_psnr": irradiance_psnr(pano, truth),
                                "pu21_psnr_peak": pu21_psnr_peak(pano, truth),
-                               **power_errors(pano, truth, lights, pos)}
+                               **power_errors(pano, truth, lights, pos),
+                               **unseen_columns(scene, lights, pos)}
         errs = [abs(v) for key, v in row.items() if key.startswith("power_err_")]
         row["power_err_stops_max"] = max(errs) if errs else float("nan")
         if relight:

@@ -35,6 +35,11 @@ outputs: with one --at, -o NAME.exr is the lat-long; NAME.cube.exr the cube
 map; NAME.tx the tiled mip-mapped texture (OpenImageIO maketx). With several
 --at, NAME.000.exr, NAME.001.exr... in the order given.
 
+warnings (printed, and in report.json beside the EXRs): a point far outside the
+splats, within 1.5 radii of a light, or seeing a light from more than 30 degrees
+off every photo that saw it (its power there is the fit's guess; report.json
+gives the angle per probe and light, lights_unseen_deg)
+
 examples:
   gaslight2usd hdri out/splats.ply --at 0,1.5,0 -o out/probe.exr --cube
   gaslight2usd hdri out/splats.ply --at 0,1,0 --at 2,1,0 -o probes/p.exr --size 1024
