@@ -79,7 +79,8 @@ def merge(ctx: StageContext) -> StageResult:
         ref.name = bracket.name
         write_hdr_view(ctx.output, ref, np.maximum(radiance, 0), s.working_space, "bracket",
                        attrs, s.ocio_config,
-                       clipped_by=bracket.views[int(np.argmin(bracket.evs))])
+                       clipped_by=bracket.views[int(np.argmin(bracket.evs))],
+                       crushed_by=bracket.views[int(np.argmax(bracket.evs))])
         if opts.save_stacks:
             write_stack(ctx.output / "stacks", ref.name, stack, result.evs)
         merged_count += int(bracket.is_bracket)

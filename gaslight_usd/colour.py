@@ -156,6 +156,10 @@ take :func:`luminance_weights` of that space instead."""
 CLIP_LEVEL = 0.99
 """Encoded value (0-1) at or above which a photo's channel counts as clipped; 8-bit
 JPEGs land a little under 1.0 at saturation, so 1.0 itself would miss them."""
+DARK_LEVEL = 3.0 / 255.0
+"""Encoded value (0-1) at or under which a photo's channel counts as crushed to black:
+an 8-bit photo's codes 0-3, where the sensor's floor, noise and JPEG's rounding leave
+no measurement, only "at most this dark"."""
 
 
 def luminance_weights(space: str | None = None, config_uri: str | None = None, *,

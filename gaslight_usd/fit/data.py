@@ -24,7 +24,7 @@ from ..errors import InputError
 from ..imageio import read_channel, read_header, read_image
 from ..poses import read_poses
 from ..poses.colmap import ColmapModel
-from ..poses.views import CLIP_FLOOR_CHANNEL, hdr_view_paths
+from ..poses.views import CLIP_FLOOR_CHANNEL, DARK_CEILING_CHANNEL, hdr_view_paths
 from ..resize import area_resize, fit_within
 from ..sightings import PeakMap, peak_map
 
@@ -48,6 +48,10 @@ class FitData:
     """Per view ``(H, W)`` lower bounds on the luminance where its photo clipped, 0 where
     it measured (see :func:`fit_floor`); empty or None: every pixel was measured."""
 
+    ceilings: list[np.ndarray | None] = field(default_factory=list)
+    """Per view ``(H, W)`` upper bounds on the luminance where its photo crushed to black,
+    0 where it measured (see :func:`fit_ceiling`); empty or None: none crushed."""
+
     peaks: list[PeakMap] = field(default_factory=list)
     """Per view its luminance peaks from the full-size view (:func:`peak_map`), for
     finding small lights the working size averages away; empty for in-memory data."""
@@ -65,6 +69,13 @@ class FitData:
             return None
         f = self.floors[index]
         return f if bool(np.any(f > 0)) else None
+
+    def ceiling(self, index: int) -> np.ndarray | None:
+        """View ``index``'s dark ceiling, None when its photo crushed no pixel."""
+        if index >= len(self.ceilings) or self.ceilings[index] is None:
+            return None
+        c = self.ceilings[index]
+        return c if bool(np.any(c > 0)) else None
 
     left_out: list[str] = field(default_factory=list)
     """HDR views (stems) with no pose, left out of the fit (e.g. SfM did not register them)."""
@@ -165,6 +176,27 @@ def fit_floor(floor: np.ndarray, image: np.ndarray, weights: np.ndarray,
     return np.where(share > 0, np.maximum(low, 1e-6), 0.0).astype(np.float32)
 
 
+CRUSHED_SHARE = 0.5
+"""A fitting pixel is bounded above (:func:`fit_ceiling`) where at least this share of
+its photo pixels were crushed to black; with fewer it stays a measurement, the crushed
+ones counted at their (near-zero) recorded value."""
+
+
+def fit_ceiling(ceiling: np.ndarray, image: np.ndarray, weights: np.ndarray,
+                size: tuple[int, int], downscale: int = 1) -> np.ndarray | None:
+    """A full-size dark ceiling at fitting resolution (as :func:`fit_floor`), or None
+    where no fitting pixel is bounded: the mean, over the fitting pixel's photo pixels,
+    of the crushed ones' ceilings and the measured ones' luminance (an upper bound on its
+    mean luminance), where :data:`CRUSHED_SHARE` of them were crushed; 0 elsewhere."""
+    crushed = ceiling > 0
+    bound = np.where(crushed, ceiling, image @ weights.astype(np.float32))[..., None]
+    high = box_downscale(area_resize(bound.astype(np.float32), *size), downscale)[..., 0]
+    share = box_downscale(area_resize(crushed.astype(np.float32)[..., None], *size),
+                          downscale)[..., 0]
+    out = np.where(share >= CRUSHED_SHARE, np.maximum(high, 1e-9), 0.0).astype(np.float32)
+    return out if bool(np.any(out > 0)) else None
+
+
 def match_views(hdr_dir: Path, model: ColmapModel, left_out: list[str] | None = None
                 ) -> list[tuple[PinholeCamera, Path]]:
     """Pair each posed camera with its EXR by stem; InputError on any disagreement.
@@ -244,11 +276,13 @@ def check_overlap(cameras: list[PinholeCamera], points: np.ndarray | None = None
 
 
 def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: int = 1
-              ) -> tuple[np.ndarray, PinholeCamera, Any, np.ndarray | None, PeakMap]:
+              ) -> tuple[np.ndarray, PinholeCamera, Any, np.ndarray | None, PeakMap,
+                         np.ndarray | None]:
     """One HDR view at fitting size, its camera to match, the image read, its clip
-    floor at fitting size (None when its photo clipped nothing, see :func:`fit_floor`)
-    and its full-size luminance peaks (:func:`gaslight_usd.sightings.peak_map`, specks
-    over its own white removed: the median of its full-size clip floors).
+    floor at fitting size (None when its photo clipped nothing, see :func:`fit_floor`),
+    its full-size luminance peaks (:func:`gaslight_usd.sightings.peak_map`, specks
+    over its own white removed: the median of its full-size clip floors) and its dark
+    ceiling at fitting size (None when its photo crushed nothing, :func:`fit_ceiling`).
 
     The view's camera is ``cam`` scaled to the view's own size (working-size
     views from ``run``), then both are shrunk so the long side is at most
@@ -271,9 +305,14 @@ def load_view(path: Path, cam: PinholeCamera, working_size: int = 0, downscale: 
     else:
         peaks = peak_map(full, weights, None)
         floor = None
+    ceiling = read_channel(path, DARK_CEILING_CHANNEL)
+    if ceiling is not None and np.any(ceiling > 0):
+        ceiling = fit_ceiling(ceiling, full, weights, size, downscale)
+    else:
+        ceiling = None
     img.pixels = np.empty((0, 0, 3), np.float32)
     return (np.ascontiguousarray(pixels, np.float32), scale_camera(cam, downscale), img,
-            floor, peaks)
+            floor, peaks, ceiling)
 
 
 def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
@@ -285,11 +324,12 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
     left_out: list[str] = []
     pairs = match_views(hdr_dir, model, left_out)
     check_overlap([c for c, _ in pairs], model.points)
-    names, cams, images, paths, floors, peaks = [], [], [], [], [], []
+    names, cams, images, paths, floors, peaks, ceilings = [], [], [], [], [], [], []
     space, attrs = "", {}
     for cam, path in pairs:
         paths.append(path)
-        pixels, scaled, img, floor, peak = load_view(path, cam, working_size, downscale)
+        pixels, scaled, img, floor, peak, ceiling = load_view(path, cam, working_size,
+                                                              downscale)
         if not space:
             space = img.colour_space
             attrs = {k: v for k, v in img.metadata.items() if k.startswith("gaslight:")}
@@ -298,6 +338,7 @@ def load_fit_data(hdr_dir: str | Path, poses: str | Path, downscale: int = 1,
         images.append(pixels)
         floors.append(floor)
         peaks.append(peak)
+        ceilings.append(ceiling)
     return FitData(names=names, cameras=cams, images=images, model=model, colour_space=space,
                    attributes=attrs, downscale=downscale, paths=paths, floors=floors,
-                   left_out=left_out, peaks=peaks)
+                   left_out=left_out, peaks=peaks, ceilings=ceilings)

@@ -16,6 +16,13 @@ a linear L1 pull from each of 15 clipped views (15 x 0.1) outweighed the one
 measurement (1), and the fit settled on the guess (measured by
 ``gaslight2usd bench --suite chain --method "recursive + dark frames"``).
 
+Pixels the photo crushed to black are bounds the other way: where a view's dark
+ceiling (:data:`gaslight_usd.poses.views.DARK_CEILING_CHANNEL`) is > 0 the photo only
+says the luminance is at most the ceiling, and the loss is ``relu(Y(pred) - ceiling)``.
+A frame exposed for a light is black everywhere else; fitted as measured black, it
+contradicts every other photo of the walls it saw. The SSIM term sees such a pixel as
+the prediction itself, held under the ceiling (no gradient below it).
+
 SSIM is Wang et al. 2004 with the usual 11x11 Gaussian window (sigma 1.5),
 C1 = 0.01^2, C2 = 0.03^2.
 """
@@ -64,21 +71,43 @@ def ssim(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 def bounded_l1(pred: torch.Tensor, target: torch.Tensor, floor: torch.Tensor | None,
-               y_weights: torch.Tensor | None = None, fill_weight: float = 0.1
-               ) -> torch.Tensor:
-    """Mean L1 over ``(H, W, 3)`` with the clip floor's pixels as bounds (module docstring).
+               y_weights: torch.Tensor | None = None, fill_weight: float = 0.1,
+               ceiling: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean L1 over ``(H, W, 3)`` with the clip floor's and the dark ceiling's pixels as
+    bounds (module docstring).
 
     ``floor``: ``(H, W)`` lower bounds on the luminance, 0 where measured (None: all
-    measured); ``y_weights``: the working space's luminance weights ``(3,)``.
+    measured); ``ceiling``: ``(H, W)`` upper bounds, 0 where measured (None: none);
+    ``y_weights``: the working space's luminance weights ``(3,)``.
     """
     err = (pred - target).abs()
-    if floor is None:
+    if floor is None and ceiling is None:
         return err.mean()
     if y_weights is None:
-        raise ValueError("a clip floor needs the working space's luminance weights")
-    bounded = (floor > 0)[..., None]
-    short = torch.relu(floor - pred @ y_weights)[..., None]
-    return torch.where(bounded, fill_weight * fill_pull(pred, target) + short, err).mean()
+        raise ValueError("a clip floor or dark ceiling needs the working space's "
+                         "luminance weights")
+    lum = pred @ y_weights
+    if ceiling is not None:
+        over = torch.relu(lum - ceiling)[..., None]
+        err = torch.where((ceiling > 0)[..., None], over.expand_as(err), err)
+    if floor is not None:
+        short = torch.relu(floor - lum)[..., None]
+        err = torch.where((floor > 0)[..., None], fill_weight * fill_pull(pred, target) + short,
+                          err)
+    return err.mean()
+
+
+def under_ceiling(pred: torch.Tensor, target: torch.Tensor, ceiling: torch.Tensor | None,
+                  y_weights: torch.Tensor | None) -> torch.Tensor:
+    """``target`` with each dark-ceiling pixel replaced by the prediction held under the
+    ceiling (scaled down to it where above; detached): what the SSIM term compares
+    against there, so that it asks no more than the bound does."""
+    if ceiling is None or y_weights is None:
+        return target
+    held = pred.detach()
+    lum = (held @ y_weights).clamp_min(1e-12)
+    held = held * torch.clamp(ceiling / lum, max=1.0)[..., None]
+    return torch.where((ceiling > 0)[..., None], held, target)
 
 
 def fill_pull(pred: torch.Tensor, fill: torch.Tensor) -> torch.Tensor:
@@ -94,11 +123,12 @@ def fill_pull(pred: torch.Tensor, fill: torch.Tensor) -> torch.Tensor:
 
 def fit_loss(pred: torch.Tensor, target: torch.Tensor, ssim_weight: float = 0.2,
              log_weight: float = 0.0, floor: torch.Tensor | None = None,
-             y_weights: torch.Tensor | None = None, fill_weight: float = 0.1
-             ) -> torch.Tensor:
-    """L1(HDR, clipped pixels as bounds) + ssim_weight (1 - SSIM(clamped))
+             y_weights: torch.Tensor | None = None, fill_weight: float = 0.1,
+             ceiling: torch.Tensor | None = None) -> torch.Tensor:
+    """L1(HDR, clipped and crushed pixels as bounds) + ssim_weight (1 - SSIM(clamped))
     [+ log_weight L1(log1p)]."""
-    loss = bounded_l1(pred, target, floor, y_weights, fill_weight)
+    loss = bounded_l1(pred, target, floor, y_weights, fill_weight, ceiling)
+    target = under_ceiling(pred, target, ceiling, y_weights)
     if ssim_weight:
         loss = loss + ssim_weight * (1.0 - ssim(pred.clamp(0, 1), target.clamp(0, 1)))
     if log_weight:

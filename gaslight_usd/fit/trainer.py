@@ -124,6 +124,9 @@ class Trainer:
         self.floors = [None if not config.clip_bounds or (f := data.floor(i)) is None
                        else torch.as_tensor(f, device=device)
                        for i in range(len(data.images))]
+        self.ceilings = [None if not config.clip_bounds or (c := data.ceiling(i)) is None
+                         else torch.as_tensor(c, device=device)
+                         for i in range(len(data.images))]
         # Rec.709's weights when the space is unnamed or unknown (in-memory scenes)
         self.y_weights = torch.as_tensor(luminance_weights(data.colour_space or None,
                                                            fallback=True), device=device)
@@ -438,7 +441,8 @@ class Trainer:
                      background=self._training_background(), sh_degree=self.active_degree(),
                      pose=self.refiner.pose(k) if self.refiner else None)
         loss = fit_loss(out.image, self.targets[view], cfg.ssim_weight, cfg.log_weight,
-                        self.floors[view], self.y_weights, cfg.clip_fill_weight)
+                        self.floors[view], self.y_weights, cfg.clip_fill_weight,
+                        self.ceilings[view])
         if cfg.elongation_weight:
             loss = loss + cfg.elongation_weight * elongation_penalty(
                 self.model.t["log_scales"], cfg.elongation_limit)

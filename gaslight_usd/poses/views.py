@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from .. import colour
-from ..colour import CLIP_LEVEL
+from ..colour import CLIP_LEVEL, DARK_LEVEL
 from ..imageio import (
     IMAGE_EXTENSIONS,
     LDR_EXTENSIONS,
@@ -43,6 +43,14 @@ CLIP_FLOOR_CHANNEL = "clip_floor"
 recorded there (relative radiance, working space), a lower bound on the true luminance;
 0 where the photo measured the pixel. The fit treats those pixels as bounds, not targets
 (:mod:`gaslight_usd.fit.losses`)."""
+DARK_CEILING_CHANNEL = "dark_ceiling"
+"""The HDR views' second extra channel: in pixels the photo crushed to black (every
+channel at or under :data:`gaslight_usd.colour.DARK_LEVEL`), the luminance of that level
+(relative radiance, working space), an upper bound on the true luminance; 0 where the
+photo measured the pixel. A frame exposed for a light (the README's "shooting the
+lights") is black but for the light: its black says "at most this", not "nothing
+there" (``gaslight2usd bench --suite chain --method "recursive + dark frames"``
+measures such frames)."""
 
 
 @dataclass
@@ -69,6 +77,25 @@ class View:
     @property
     def relative_radiance(self) -> np.ndarray:
         return self.linear / np.float32(self.exposure_ratio)
+
+    @property
+    def crushed_mask(self) -> np.ndarray:
+        return np.all(self.encoded <= DARK_LEVEL, axis=-1)
+
+    def dark_ceiling(self, weights: np.ndarray, working_space: str,
+                     config_uri: str | None = None) -> np.ndarray:
+        """``(H, W)``: the luminance of an encoded :data:`~gaslight_usd.colour.DARK_LEVEL`
+        in every channel (relative radiance, ``weights`` the working space's Y weights)
+        where the photo crushed to black, 0 elsewhere; see :data:`DARK_CEILING_CHANNEL`."""
+        crushed = self.crushed_mask
+        if not crushed.any():
+            return np.zeros(crushed.shape, np.float32)
+        level = colour.convert(np.full((1, 1, 3), DARK_LEVEL, np.float32),
+                               self.metadata.get("source_space", colour.DEFAULT_INPUT_SPACE),
+                               working_space, config_uri)
+        value = float(np.maximum(level.reshape(3), 0.0) @ weights.astype(np.float32))
+        value = max(value, 1e-9) / float(self.exposure_ratio)
+        return np.where(crushed, value, 0.0).astype(np.float32)
 
     def clip_floor(self, weights: np.ndarray) -> np.ndarray:
         """``(H, W)``: the recorded luminance (``weights``: the working space's Y weights)
@@ -145,19 +172,27 @@ def hdr_attributes(view: View, method: str, extra: dict[str, Any] | None = None)
 
 def write_hdr_view(folder: Path, view: View, radiance: np.ndarray, working_space: str,
                    method: str, extra: dict[str, Any] | None = None,
-                   config_uri: str | None = None, clipped_by: View | None = None) -> Path:
-    """Write one HDR view as ``<folder>/<photo stem>.exr`` (atomic), with its clip floor.
+                   config_uri: str | None = None, clipped_by: View | None = None,
+                   crushed_by: View | None = None) -> Path:
+    """Write one HDR view as ``<folder>/<photo stem>.exr`` (atomic), with its clip floor
+    and its dark ceiling.
 
     ``clipped_by``: the photo whose clipping bounds this radiance (default ``view``;
-    for a merged bracket, its darkest frame: only what that frame clipped is unmeasured).
+    for a merged bracket, its darkest frame: only what that frame clipped is unmeasured);
+    ``crushed_by``: the photo whose black bounds it (default ``view``; for a bracket,
+    its brightest frame).
     """
-    source = clipped_by or view
-    floor = source.clip_floor(colour.luminance_weights(working_space, config_uri))
+    weights = colour.luminance_weights(working_space, config_uri)
+    floor = (clipped_by or view).clip_floor(weights)
     if floor.shape != radiance.shape[:2]:
         floor = np.zeros(radiance.shape[:2], np.float32)
+    ceiling = (crushed_by or view).dark_ceiling(weights, working_space, config_uri)
+    if ceiling.shape != radiance.shape[:2]:
+        ceiling = np.zeros(radiance.shape[:2], np.float32)
     return write_exr(folder / f"{view.name}.exr", radiance, working_space,
                      hdr_attributes(view, method, extra), config_uri=config_uri,
-                     extra_channels={CLIP_FLOOR_CHANNEL: floor})
+                     extra_channels={CLIP_FLOOR_CHANNEL: floor,
+                                     DARK_CEILING_CHANNEL: ceiling})
 
 
 def hdr_view_paths(folder: Path) -> list[Path]:
