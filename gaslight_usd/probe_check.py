@@ -40,11 +40,11 @@ further out and the bundled example's (all well outside it) are not (``gaslight2
 UNSEEN_LIGHT_DEG = 30.0
 """A probe that sees a light from further than this (degrees, at the light) from every
 photo that saw it is warned about. On the chain bench's rooms fitted from their true
-HDR views (no level to guess: what is left is the fit's shape), a light's power at a
-probe within it was off by a median 0.1-0.2 stops, beyond it by 0.6-0.7 and up to 3.7
-(a lamp in a shade, photographed from the side, seen from below)
-(``gaslight2usd bench --suite chain``, its ``unseen_deg_<light>`` columns beside
-``power_err_<light>``; docs/measurements.md)."""
+HDR views (no level to guess: what is left is the fit's shape) the lights' power errors
+at the probes grow several-fold past it, most for a lamp in a shade photographed from
+the side and seen from below (``gaslight2usd bench --suite chain``, its
+``unseen_deg_<light>`` columns beside ``power_err_<light>``; figures in
+docs/measurements.md, session 37)."""
 
 
 def unseen_angles(point: Sequence[float], positions: np.ndarray,
