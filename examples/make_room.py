@@ -76,6 +76,9 @@ LAMP_ON = True  # the variants may light the room without the pendant lamp
 CEILING_PANELS: list[dict[str, Any]] = []  # extra emitters: {"center", "half", "radiance"}
 SHADE: dict[str, Any] | None = None  # an open cylinder around the lamp: {"radius", "y0", "y1"}
 TEXTURE_GAIN = 1.0  # albedo scale of every texture (then clipped to [0.02, 0.9])
+SUN: dict[str, Any] | None = None  # a sun patch on the floor: {"min", "max", "radiance"}
+# ("radiance": the sunlight's irradiance / pi, times the floor's albedo)
+CAMERA_SPREAD = 1.0  # scale of the camera rings' radii (a larger room is shot from wider)
 
 # No two shapes touch: Embree resolves exactly equal hit distances in an order that can
 # change from one scene build to the next, so shared edges would make renders flip a few
@@ -123,6 +126,24 @@ VARIANTS: dict[str, dict[str, Any]] = {
         "SHADE": {"radius": 0.16, "y0": 2.0, "y1": 2.26},
         "PROBE_POSITIONS": np.array([[0.0, 1.4, 0.0], [0.8, 1.6, 0.9], [2.0, 1.6, 0.2]]),
     },
+    # no lamp: a bright window and a sun patch on the floor below it, three times as bright
+    # as the window (a lit surface the photos clip, not a light)
+    "sun": _SMALL | {
+        "LAMP_ON": False, "WINDOW_RADIANCE": 20.0 * np.array([0.75, 0.87, 1.0]),
+        "SUN": {"min": [-0.45, 0.05], "max": [0.45, 0.85],
+                "radiance": 150.0 * np.array([1.0, 0.9, 0.72])},
+        "PROBE_POSITIONS": np.array([[0.0, 1.4, 0.0], [0.0, 0.6, 0.45], [2.0, 1.6, 0.2]]),
+    },
+    # a larger hall (7 m x 3.4 m x 5.4 m), a wide window, a lamp in the far corner, shot
+    # from wider rings
+    "hall": _SMALL | {
+        "ROOM_MIN": np.array([-3.5, 0.0, -2.7]), "ROOM_MAX": np.array([3.5, 3.4, 2.7]),
+        "LAMP_CENTER": np.array([-2.0, 2.3, -1.2]), "LAMP_RADIUS": 0.04,
+        "LAMP_RADIANCE": 5000.0 * np.array([1.0, 0.78, 0.5]),
+        "WINDOW_HALF": (0.9, 0.6), "WINDOW_RADIANCE": 15.0 * np.array([0.8, 0.9, 1.0]),
+        "TEXTURE_GAIN": 0.8, "CAMERA_SPREAD": 1.35,
+        "PROBE_POSITIONS": np.array([[0.0, 1.4, 0.0], [-1.6, 2.0, -0.9], [3.0, 1.6, 0.2]]),
+    },
 }
 """Rooms for ``--variant``: overrides of this module's constants (``room``: none)."""
 
@@ -133,7 +154,7 @@ def apply_variant(name: str) -> None:
         raise SystemExit(f"unknown variant {name!r}; choose from {', '.join(VARIANTS)}")
     g = globals()
     g.update(VARIANTS[name])
-    g["WINDOW_CENTER"] = np.array([ROOM_MAX[0] - 0.002, 1.6, 0.2])
+    g["WINDOW_CENTER"] = np.array([g["ROOM_MAX"][0] - 0.002, 1.6, 0.2])
     g["VARIANT"] = name
 
 
@@ -465,32 +486,16 @@ def scene_dict(tex: dict[str, np.ndarray]) -> dict[str, Any]:
             "bsdf": textured(name),
         }
 
-    table_top = 0.75 + g
-    boxes = {  # name: centre, half sizes, yaw (degrees), texture; each floats GAP above
-        "table": ((0.5, 0.375 + g, -0.5), (0.6, 0.375, 0.4), 10.0, "table"),
-        "cabinet": ((-1.5, 0.9 + g, -1.75 + g), (0.5, 0.9, 0.25), 0.0, "cabinet"),
-        "crate": ((1.7, 0.25 + g, 1.4), (0.25, 0.25, 0.25), 20.0, "crate"),
-        "box": ((0.3, table_top + 0.15 + g, -0.45), (0.15, 0.15, 0.15), -30.0, "box"),
-        "sill": ((2.44 - g, 1.02 - g, 0.2), (0.06, 0.03, 0.85), 0.0, "cabinet"),
-    }
+    boxes = object_boxes()
     for name, (c, half, yaw, texname) in boxes.items():
         d[name] = {
             "type": "cube",
             "to_world": mi.ScalarTransform4f(transform(np.array(c), box_axes(half, yaw))),
             "bsdf": textured(texname),
         }
-    d["ball_red"] = {
-        "type": "sphere",
-        "center": [-0.8, 0.3 + g, 1.3],
-        "radius": 0.3,
-        "bsdf": textured("ball_red"),
-    }
-    d["ball_blue"] = {
-        "type": "sphere",
-        "center": [0.9, table_top + 0.15 + g, -0.6],
-        "radius": 0.15,
-        "bsdf": textured("ball_blue"),
-    }
+    for name, (centre, radius) in balls().items():
+        d[name] = {"type": "sphere", "center": centre, "radius": radius,
+                   "bsdf": textured(name)}
     if LAMP_ON:
         add_lamp(d, g)
     for k, panel in enumerate(CEILING_PANELS):
@@ -504,7 +509,33 @@ def scene_dict(tex: dict[str, np.ndarray]) -> dict[str, Any]:
                         "radiance": {"type": "rgb", "value": list(panel["radiance"])}},
         }
     add_window(d)
+    if SUN is not None:
+        f_centre, f_u, f_v = (np.array(x, float) for x in shell["floor"])
+        add_sun(d, (f_centre, rect_axes(f_centre, f_u, f_v)), tex["floor"])
     return d
+
+
+def object_boxes() -> dict[str, tuple[tuple[float, float, float], tuple[float, float, float],
+                                       float, str]]:
+    """The furniture: name -> centre, half sizes, yaw (degrees), texture; each floats GAP
+    above what it stands on."""
+    g, hi = GAP, ROOM_MAX
+    table_top = 0.75 + g
+    return {
+        "table": ((0.5, 0.375 + g, -0.5), (0.6, 0.375, 0.4), 10.0, "table"),
+        "cabinet": ((-1.5, 0.9 + g, -1.75 + g), (0.5, 0.9, 0.25), 0.0, "cabinet"),
+        "crate": ((1.7, 0.25 + g, 1.4), (0.25, 0.25, 0.25), 20.0, "crate"),
+        "box": ((0.3, table_top + 0.15 + g, -0.45), (0.15, 0.15, 0.15), -30.0, "box"),
+        "sill": ((hi[0] - 0.06 - g, 1.02 - g, 0.2), (0.06, 0.03, 0.85), 0.0, "cabinet"),
+    }
+
+
+def balls() -> dict[str, tuple[list[float], float]]:
+    """The two balls: name -> centre, radius (each floats GAP above what it stands on)."""
+    g = GAP
+    table_top = 0.75 + g
+    return {"ball_red": ([-0.8, 0.3 + g, 1.3], 0.3),
+            "ball_blue": ([0.9, table_top + 0.15 + g, -0.6], 0.15)}
 
 
 def add_lamp(d: dict[str, Any], g: float) -> None:
@@ -555,6 +586,40 @@ def add_window(d: dict[str, Any]) -> None:
     }
 
 
+def add_sun(d: dict[str, Any], floor: tuple[np.ndarray, np.ndarray], albedo: np.ndarray) -> None:
+    """A sun patch: the floor where a sunbeam through the window lands, as a one-sided
+    rectangle emitter a contact gap above the floor whose radiance is the floor's albedo
+    texture x ``SUN["radiance"]`` (the sun's irradiance / pi), so the patch keeps the
+    floor's pattern. Modelled as an emitter so that the path tracer's next-event
+    estimation reaches it: a spot light's bounce off a small bright patch left every wall
+    full of fireflies at these sample counts. It is not one of the scene's lights (a lit
+    surface the photos clip), and no sun is in view.
+
+    ``floor``: the floor rectangle's centre and axes (:func:`rect_axes`), whose UVs the
+    patch's are mapped onto so that both read the same texels."""
+    (x0, z0), (x1, z1) = SUN["min"], SUN["max"]
+    centre = np.array([(x0 + x1) / 2, GAP, (z0 + z1) / 2])
+    axes = np.stack([[(x1 - x0) / 2, 0, 0], [0, 0, -(z1 - z0) / 2], [0, 1.0, 0]], axis=1)
+    f_centre, f_axes = floor
+    # floor local coordinates (in [-1, 1]) of the patch's: affine, l_f = A l_p + b
+    norms = (f_axes[:, :2] ** 2).sum(axis=0)
+    a = (f_axes[:, :2].T @ axes[:, :2]) / norms[:, None]
+    b = f_axes[:, :2].T @ (centre - f_centre) / norms
+    to_uv = np.eye(3)  # uv = (l + 1) / 2 on both rectangles
+    to_uv[:2, :2] = a
+    to_uv[:2, 2] = 0.5 + 0.5 * b - 0.5 * a.sum(axis=1)
+    radiance = (albedo * np.asarray(SUN["radiance"], np.float32)).astype(np.float32)
+    d["sun_patch"] = {
+        "type": "rectangle",
+        "to_world": mi.ScalarTransform4f(transform(centre, axes)),
+        "bsdf": plain((0.0, 0.0, 0.0)),
+        "emitter": {"type": "area", "sampling_weight": EMITTER_WEIGHTS[0],
+                    "radiance": {"type": "bitmap", "bitmap": mi.Bitmap(radiance), "raw": True,
+                                 "filter_type": "bilinear",
+                                 "to_uv": mi.ScalarTransform3f(to_uv.tolist())}},
+    }
+
+
 # --------------------------------------------------------------------------- cameras
 
 
@@ -598,7 +663,8 @@ def camera_loop(n: int) -> list[Camera]:
     cams = []
     for i in range(n):
         a = 2 * math.pi * i / n
-        c = np.array([1.55 * math.cos(a), 1.4 + 0.15 * math.sin(2 * a), 1.1 * math.sin(a)])
+        c = np.array([1.55 * CAMERA_SPREAD * math.cos(a), 1.4 + 0.15 * math.sin(2 * a),
+                      1.1 * CAMERA_SPREAD * math.sin(a)])
         turn = a + math.pi + math.radians(15)
         target = c + np.array([math.cos(turn), 0.1 + 0.1 * math.cos(a), math.sin(turn)])
         cams.append(look_at(c, target))
@@ -613,7 +679,8 @@ def camera_pitched(n: int, pitch_deg: float, radius: tuple[float, float], height
     rise = math.tan(math.radians(pitch_deg))
     for i in range(n):
         a = 2 * math.pi * (i + phase) / n
-        c = np.array([radius[0] * math.cos(a), height, radius[1] * math.sin(a)])
+        c = np.array([radius[0] * CAMERA_SPREAD * math.cos(a), height,
+                      radius[1] * CAMERA_SPREAD * math.sin(a)])
         turn = a + math.pi + math.radians(15)
         target = c + np.array([math.cos(turn), rise, math.sin(turn)])
         cams.append(look_at(c, target))
@@ -1156,6 +1223,14 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
     if VARIANT != "room":  # the example's scene.json stays as it was (digests)
         scene["variant"] = VARIANT
         scene["lights"] = light_list()
+        if SUN is not None:
+            scene["sun_patch"] = {
+                "min_xz": list(SUN["min"]), "max_xz": list(SUN["max"]),
+                "irradiance_over_pi": np.asarray(SUN["radiance"]).tolist(),
+                "kind": "sunlit floor (a rectangle emitter on the floor, radiance = the "
+                        "floor's albedo x irradiance_over_pi): a lit surface the photos "
+                        "clip, not one of the lights",
+            }
         if not LAMP_ON:
             scene.pop("lamp")
             scene["measured"].pop("lamp_to_median_ratio")

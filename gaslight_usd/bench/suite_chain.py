@@ -1,8 +1,10 @@
 """Bench suite "chain": the light that comes out of the PHOTOS, on rooms never tuned on.
 
 Each scene is a room rendered by ``examples/make_room.py`` (the bundled example
-``room`` and the variants ``bulb``, ``panels``, ``shade``: other lights, albedos
-and photo counts; ``NAME:SEED`` draws another room of the variant, e.g. ``room:11``;
+``room`` and the variants ``bulb``, ``panels``, ``shade``, ``sun`` (a sun patch on the
+floor far brighter than the window: a lit surface the photos clip, not a light) and
+``hall`` (a larger room, its lamp in a far corner): other lights, layouts, albedos and
+photo counts; ``NAME:SEED`` draws another room of the variant, e.g. ``room:11``;
 rendered into ``<out>/scenes/`` the first time, about 2-3 min each on 2 cores, 10 for
 a ``room`` draw's 24 photos at 480 x 360). For every scene the chain runs from its LDR
 photos with the true poses (so the uplift and the fit are measured, not SfM), once per method:
@@ -95,7 +97,7 @@ REFERENCES = ("truth HDR", "clipped photos")
 TRUTH_HDR_METHOD = "measured (the scene's true HDR views)"
 """The ``hdr_method`` a fit from the true HDR views carries: its lights' power is
 measured (:func:`gaslight_usd.lights.power_source`)."""
-SCENES = ("room", "bulb", "panels", "shade")
+SCENES = ("room", "bulb", "panels", "shade", "sun", "hall")
 METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets",
            "recursive, uplift's power", "recursive + dark frames", "truth HDR, planes off",
            "recursive, planes on")

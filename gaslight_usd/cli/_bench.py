@@ -58,8 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "default: all)")
     p.add_argument("--scene", action="append", default=[], metavar="NAME",
                    help="chain suite: only these scenes (repeatable; room, bulb, panels, "
-                        "shade, each optionally :SEED for another draw never tuned on, "
-                        "e.g. room:11; default: all)")
+                        "shade, sun (a sun patch on the floor, no lamp), hall (a 7 m hall, "
+                        "its lamp in a far corner), each optionally :SEED for another draw "
+                        "never tuned on, e.g. room:11; default: all)")
     p.add_argument("--perturb", action="append", default=[], metavar="NAME",
                    help="stability suite: only these perturbations (repeatable; photos, "
                         "noise, jpeg, white_balance, exposure, motion_blur, light_half_out, "
