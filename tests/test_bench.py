@@ -365,3 +365,24 @@ def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
     from gaslight_usd.lights import power_source
     assert power_source(scene.metadata) == "predicted"
     assert scene.metadata["fit_metrics"]["clipped_lights"] == metrics["clipped_lights"]
+
+
+def test_chain_scores_a_sunlit_patch_like_a_light():
+    """The ``sun`` room's sunlit floor gets its own power error at a probe: the light from
+    the patch's directions, found against true."""
+    from gaslight_usd.bench.suite_chain import lit_regions, power_errors
+    from gaslight_usd.cameras import latlong_directions
+
+    info = {"sun_patch": {"min_xz": [-0.45, 0.05], "max_xz": [0.45, 0.85]}}
+    (patch,) = lit_regions(info)
+    assert patch["name"] == "sun_patch" and lit_regions({}) == []
+    position = np.array([0.0, 0.6, 0.45])
+    dirs = latlong_directions(256, 128)
+    t = -position[1] / np.minimum(dirs[..., 1], -1e-9)
+    hit = position + t[..., None] * dirs
+    on_patch = ((dirs[..., 1] < 0) & (hit[..., 0] > -0.45) & (hit[..., 0] < 0.45)
+                & (hit[..., 2] > 0.05) & (hit[..., 2] < 0.85))
+    truth = np.where(on_patch[..., None], 40.0, 0.0).astype(np.float32) * np.ones(3, np.float32)
+    found = truth / 4  # two stops short on the patch, nothing elsewhere
+    errors = power_errors(found, truth, [patch], position)
+    assert errors["power_err_sun_patch"] == pytest.approx(-2.0, abs=1e-6)

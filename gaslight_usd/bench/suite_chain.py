@@ -35,7 +35,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``relight_psnr`` -- the GaSLight relight protocol (Mitsuba sphere + plane);
 * ``pu21_psnr_peak`` -- PU21-PSNR with the truth's peak at 1000 cd/m^2;
 * ``power_err_<light>`` -- log2(found / true) of the light arriving at the probe from
-  each true light's direction (a cone 5 degrees wider than the light), in stops;
+  each true light's direction (a cone 5 degrees wider than the light), in stops; the
+  same for a bright surface that is not a light (``power_err_sun_patch``:
+  :func:`lit_regions`), left out of ``power_err_stops_max``;
 * ``unseen_deg_<light>`` -- how far the probe sees each true light from every photo that
   saw it (degrees at the light, from the fit's light sightings: what ``hdri`` warns
   about, :mod:`gaslight_usd.probe_check`);
@@ -155,6 +157,19 @@ def scene_lights(info: dict[str, Any]) -> list[dict[str, Any]]:
              "radius": lamp["radius"], "radiance": lamp["radiance"]},
             {"name": "window", "kind": "rectangle", "center": win["center"],
              "corners": win["corners"], "normal": win["normal"], "radiance": win["radiance"]}]
+
+
+def lit_regions(info: dict[str, Any]) -> list[dict[str, Any]]:
+    """Bright surfaces of a room that are not lights (the ``sun`` room's sunlit floor,
+    ``scene.json``'s ``sun_patch``), as rectangles: scored from each probe like a light
+    (``power_err_<name>``), never counted among the lights."""
+    patch = info.get("sun_patch")
+    if patch is None:
+        return []
+    (x0, z0), (x1, z1) = patch["min_xz"], patch["max_xz"]
+    return [{"name": "sun_patch", "kind": "rectangle",
+             "center": [(x0 + x1) / 2, 0.0, (z0 + z1) / 2], "normal": [0.0, 1.0, 0.0],
+             "corners": [[x0, 0.0, z0], [x1, 0.0, z0], [x1, 0.0, z1], [x0, 0.0, z1]]}]
 
 
 def light_cone(light: dict[str, Any], position: np.ndarray) -> tuple[np.ndarray, float]:
@@ -462,11 +477,13 @@ def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
         if space != TRUTH_SPACE:
             pano = convert(pano, space, TRUTH_SPACE)
         pano = np.maximum(pano * np.float32(scale), 0.0)
+        light_errors = power_errors(pano, truth, lights, pos)
         row: dict[str, Any] = {"probe": k, "irradiance_psnr": irradiance_psnr(pano, truth),
                                "pu21_psnr_peak": pu21_psnr_peak(pano, truth),
-                               **power_errors(pano, truth, lights, pos),
+                               **light_errors,
+                               **power_errors(pano, truth, lit_regions(info), pos),
                                **unseen_columns(scene, lights, pos)}
-        errs = [abs(v) for key, v in row.items() if key.startswith("power_err_")]
+        errs = [abs(v) for v in light_errors.values()]
         row["power_err_stops_max"] = max(errs) if errs else float("nan")
         if relight:
             from ..evaluation.relight import relight_scores
