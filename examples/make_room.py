@@ -127,8 +127,10 @@ VARIANTS: dict[str, dict[str, Any]] = {
         "PROBE_POSITIONS": np.array([[0.0, 1.4, 0.0], [0.8, 1.6, 0.9], [2.0, 1.6, 0.2]]),
     },
     # no lamp: a bright window and a sun patch on the floor below it, three times as bright
-    # as the window (a lit surface the photos clip, not a light)
+    # as the window (a lit surface the photos clip, not a light); four floor views, so
+    # that two photos frame the patch whole
     "sun": _SMALL | {
+        "N_DOWN_VIEWS": 4,
         "LAMP_ON": False, "WINDOW_RADIANCE": 20.0 * np.array([0.75, 0.87, 1.0]),
         "SUN": {"min": [-0.45, 0.05], "max": [0.45, 0.85],
                 "radiance": 150.0 * np.array([1.0, 0.9, 0.72])},
