@@ -452,7 +452,7 @@ class Trainer:
         if not bool(torch.isfinite(loss)):
             raise FitDiverged(
                 f"the fit diverged at step {self.step + 1} of {cfg.iterations} on view "
-                f"{self.data.names[view]} (loss {float(loss)}); nothing was written. A "
+                f"{self.data.names[view]} (loss {float(loss.detach())}); nothing was written. A "
                 "view with NaN or huge values, or a learning rate too high for this "
                 "scene: check the views with 'gaslight2usd info', try another --seed")
         loss.backward()
