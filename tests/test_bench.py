@@ -317,6 +317,26 @@ def test_wall_offset_is_the_median_distance_of_opaque_splats_near_the_walls():
     assert np.isnan(wall_offset(scene.subset(np.array([3])), room, backdrop=0))
 
 
+def test_chain_scores_the_fits_room_box_against_the_rooms_faces():
+    from gaslight_usd.bench.suite_chain import room_box_fit
+
+    room = {"min": [-2.5, 0.0, -2.0], "max": [2.5, 3.0, 2.0]}
+    tilt = np.radians(3.0)
+    ceiling = np.array([np.sin(tilt), -np.cos(tilt), 0.0])  # faces down, 3 deg off
+    planes = [{"normal": [1.0, 0.0, 0.0], "offset": -2.5},          # the x- wall
+              {"normal": [0.0, 0.0, -1.0], "offset": -1.9},         # z+, 10 cm in
+              {"normal": list(ceiling), "offset": float(ceiling @ [0.0, 3.02, 0.0])},
+              {"normal": [0.0, 1.0, 0.0], "offset": 0.46}]          # a table top, no floor
+    row = room_box_fit(planes, room)
+    assert row["room_faces_found"] == 3
+    assert row["room_faces_missing"] == "x+ floor z-"
+    assert row["room_face_offset_m"] == pytest.approx(0.1, abs=1e-3)
+    assert row["room_box_tilt_deg"] == pytest.approx(3.0, abs=0.01)
+    empty = room_box_fit([], room)
+    assert empty["room_faces_found"] == 0 and math.isnan(empty["room_face_offset_m"])
+    assert empty["room_faces_missing"] == "x- x+ floor ceiling z- z+"
+
+
 @pytest.mark.slow
 def test_chain_methods_pick_the_planes(monkeypatch, tmp_path):
     """``truth HDR``: the example's true HDR views fitted with the default ``plane_prior``

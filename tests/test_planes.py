@@ -319,6 +319,9 @@ def test_a_fit_keeps_its_held_splats_on_the_rooms_planes():
         along = abs(plane["offset"])
         assert min(abs(along - abs(ROOM_LO[axis])), abs(along - ROOM_HI[axis])) < 0.01
     assert planes["splats_held"] > 0.5 * held.scene.count
+    # the room box (which bounds a light's move) is reported, with or without the prior
+    box = held.metrics["room_box"]
+    assert len(box) >= 4 and {"normal", "offset", "points", "size"} <= set(box[0])
 
     def off_faces(scene):
         p = scene.positions.astype(np.float64)
@@ -327,6 +330,7 @@ def test_a_fit_keeps_its_held_splats_on_the_rooms_planes():
 
     free = fit_splats(data, cfg.updated(plane_prior="off"), seed=0)
     assert free.metrics["planes"] is None
+    assert len(free.metrics["room_box"]) >= 4  # the prior off: the box still bounds lights
     assert off_faces(held.scene) < 0.004
     assert off_faces(held.scene) < 0.5 * off_faces(free.scene)
 

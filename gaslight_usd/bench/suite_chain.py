@@ -55,6 +55,10 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
   held its splats on (:mod:`gaslight_usd.fit.planes`), how many bright floaters it
   brought back onto a lit patch of one (a window's), and how far its opaque splats near
   the walls lie off them (median, :func:`wall_offset`);
+* ``room_faces_found``, ``room_faces_missing``, ``room_face_offset_m``,
+  ``room_box_tilt_deg`` -- which of the room's walls, floor and ceiling the fit's room box
+  (the planes that bound where its lights may be moved) found, how far off and how
+  tilted (:func:`room_box_fit`);
 * ``fill_err_<light>``, ``fill_spread_<light>``, ``fill_views_<light>`` -- the uplift's
   own error for each light before any fitting, median and spread over the views that
   clipped it (:mod:`.uplift_fill`; methods that uplift photos only).
@@ -302,6 +306,57 @@ def wall_offset(scene: SplatScene, room: dict[str, Any], backdrop: int) -> float
     return round(float(np.median(near)), 4) if len(near) else float("nan")
 
 
+ROOM_FACE_NEAR_M = 0.15
+"""A plane of the fit's room box lies on a face of the true room when it passes within
+this of the face's centre..."""
+ROOM_FACE_TILT_DEG = 5.0
+"""...and its normal is within this of the face's (:func:`room_box_fit`)."""
+ROOM_FACES = ("x-", "x+", "floor", "ceiling", "z-", "z+")
+"""The true room's faces: its box's (axis, side) in order x, y (up), z."""
+
+
+def room_box_fit(planes: list[dict[str, Any]], room: dict[str, Any]) -> dict[str, Any]:
+    """How the fit's room box (``fit_metrics["room_box"]``: the planes that bound where a
+    light may be moved, :func:`gaslight_usd.fit.planes.room_box`) matches the generated
+    room's axis-aligned box ``room``:
+
+    * ``room_faces_found`` -- how many of the six faces a plane of the box lies on
+      (:data:`ROOM_FACE_NEAR_M`, :data:`ROOM_FACE_TILT_DEG`); ``room_faces_missing`` the
+      others (``x-``, ``x+``, ``floor``, ``ceiling``, ``z-``, ``z+``): a window's wall
+      missing leaves its floating splats where they are;
+    * ``room_face_offset_m`` -- the largest distance from a found face's centre to its
+      plane (NaN where none is found);
+    * ``room_box_tilt_deg`` -- the largest angle between a plane's normal and the room's
+      nearest axis (the box's planes are squared to the fit's main directions: a tilted
+      frame spreads every plane along the other two, and those go unfound).
+    """
+    lo, hi = np.asarray(room["min"], np.float64), np.asarray(room["max"], np.float64)
+    mid = (lo + hi) / 2.0
+    normals = np.array([p["normal"] for p in planes], np.float64).reshape(-1, 3)
+    offsets = np.array([p["offset"] for p in planes], np.float64)
+    if len(normals):
+        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    cos_min = math.cos(math.radians(ROOM_FACE_TILT_DEG))
+    found, missing, offsets_m = 0, [], []
+    for k, name in enumerate(ROOM_FACES):
+        axis, side = divmod(k, 2)
+        centre = mid.copy()
+        centre[axis] = (lo if side == 0 else hi)[axis]
+        along = np.abs(normals[:, axis]) if len(normals) else np.zeros(0)
+        dist = np.abs(normals @ centre - offsets) if len(normals) else np.zeros(0)
+        on = (along >= cos_min) & (dist <= ROOM_FACE_NEAR_M)
+        if on.any():
+            found += 1
+            offsets_m.append(float(dist[on].min()))
+        else:
+            missing.append(name)
+    tilt = (np.degrees(np.arccos(np.clip(np.abs(normals).max(axis=1), 0.0, 1.0)))
+            if len(normals) else np.zeros(0))
+    return {"room_faces_found": found, "room_faces_missing": " ".join(missing),
+            "room_face_offset_m": round(max(offsets_m), 3) if offsets_m else float("nan"),
+            "room_box_tilt_deg": round(float(tilt.max()), 2) if len(tilt) else float("nan")}
+
+
 def weighing_summary(clipped: list[dict[str, Any]], lights: list[dict[str, Any]]
                      ) -> dict[str, Any]:
     """What the fit decided about each clipped light (``fit_metrics["clipped_lights"]``,
@@ -533,6 +588,7 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                 placement["floaters_on_planes"] = int(planes.get("floaters_on_planes", 0))
                 placement["wall_offset_m"] = wall_offset(scene, info["room"],
                                                          int(metrics.get("backdrop_splats", 0)))
+                placement |= room_box_fit(metrics.get("room_box") or [], info["room"])
                 placement |= metrics.get("uplift_fill", {})
                 for row in probe_rows(scene, folder, scale, relight=not quick,
                                       renderer=renderer):

@@ -770,6 +770,7 @@ class Trainer:
             "oversized_cut": oversized,
             "init": self.init_method,
             "planes": self.planes.as_dict() if self.planes is not None else None,
+            "room_box": [plane.as_dict() for plane in self.room_planes],
             "fit_seconds": round(seconds, 2),
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,
