@@ -3,6 +3,8 @@ COLMAP text model: recovery, stopping rules, determinism, resume, bad input."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import torch
@@ -78,7 +80,9 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     # these bounds catch a broken fit, not a state-of-the-art one.
     assert m["held_out_log_lum_rmse_stops"] < 0.8
     assert m["held_out_pu21_psnr"] > 16.0
-    assert (tmp_path / "report.json").exists()
+    report = json.loads((tmp_path / "report.json").read_text())
+    fit_stage = next(stage for stage in report["stages"] if stage["name"] == "fit")
+    assert isinstance(fit_stage["metrics"]["room_box"], list)  # what bounds lights' moves
     assert not list(tmp_path.glob(".*checkpoint*"))
 
 
