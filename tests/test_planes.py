@@ -11,6 +11,7 @@ from gaslight_usd.fit.planes import (
     Plane,
     PlanePrior,
     ceiling_from_walls,
+    far_walls,
     find_planes,
     on_a_plane,
     room_box,
@@ -148,6 +149,52 @@ def test_a_box_without_its_ceiling_gets_one_where_its_walls_stop():
     assert ceiling_from_walls(room_box(planes_full, len(full)), full, tau_full,
                               np.array([0.0, 1.0, 0.0])) is None
     assert ceiling_from_walls(box, pts, tau, np.zeros(3)) is None
+
+
+def _room_with_a_window_wall(rng, window_wall_points: int, through_window: int = 0):
+    """The room's points with its x+ wall (a large window in it) holding only
+    ``window_wall_points``, and ``through_window`` more scattered up to 0.5 m behind it
+    where the window is (the fill of the window's pixels, at its neighbours' depths)."""
+    pts = room_points(rng, per_face=400, smear=0.02, junk=600)
+    on_far = np.abs(pts[:, 0] - ROOM_HI[0]) < 0.1
+    keep = ~on_far
+    keep[np.flatnonzero(on_far)[:window_wall_points]] = True
+    behind = np.column_stack([ROOM_HI[0] + rng.uniform(0.05, 0.5, through_window),
+                              rng.uniform(1.0, 2.2, through_window),
+                              rng.uniform(-1.0, 1.0, through_window)])
+    return np.concatenate([pts[keep], behind])
+
+
+def test_a_window_wall_refused_for_what_it_hides_is_added_to_the_room_box():
+    """The window's wall hides the fill seen through the window, so it is no plane
+    (:data:`MAX_BEHIND`); beyond the cameras the points still crowd most there, and the
+    box gets it back, facing the cameras. A box with all its walls gets nothing more."""
+    rng = np.random.default_rng(5)
+    pts = _room_with_a_window_wall(rng, 150, through_window=400)
+    cams = cameras_inside(rng)
+    planes, tau = find_planes(pts, cams, rng)
+    box = room_box(planes, len(pts))
+    assert not any(p.normal[0] < -0.99 for p in box)  # the x+ wall is missing
+    added = far_walls(box, pts, cams, tau, np.array([0.0, 1.0, 0.0]))
+    assert len(added) == 1
+    wall = added[0]
+    assert wall.normal[0] < -0.99  # faces the cameras, back into the room
+    assert -wall.offset == pytest.approx(ROOM_HI[0], abs=0.03)
+    assert np.all(cams @ wall.normal - wall.offset > 0)
+    whole = room_points(np.random.default_rng(6))
+    planes, tau = find_planes(whole, cams, np.random.default_rng(6))
+    assert far_walls(room_box(planes, len(whole)), whole, cams, tau,
+                     np.array([0.0, 1.0, 0.0])) == []
+
+
+def test_no_far_wall_where_nothing_crowds_beyond_the_cameras():
+    """An open side (no wall, only the fill's scatter past the cameras) gets no wall."""
+    rng = np.random.default_rng(7)
+    pts = _room_with_a_window_wall(rng, 0)
+    cams = cameras_inside(rng)
+    planes, tau = find_planes(pts, cams, rng)
+    box = room_box(planes, len(pts))
+    assert far_walls(box, pts, cams, tau, np.array([0.0, 1.0, 0.0])) == []
 
 
 def test_walls_that_stop_at_different_heights_make_no_ceiling():

@@ -21,8 +21,10 @@ scattered behind it, is held where the walls stop at it (:func:`_caps`); a plain
 floor, which furniture hides from the walls' points, is not. Bright clumps the fit
 leaves floating in front of a lit patch of a plane (a window) go onto it
 (:func:`bright_floaters`). The same planes, where they make a room's box
-(:func:`room_box`), stop a light sunk behind a ceiling few photos see
-(:mod:`.sunk_lights`), with the plane prior on or off.
+(:func:`room_box`; a window's wall too sparse to be a plane added where the points
+beyond the cameras crowd, :func:`far_walls`), stop a light sunk behind a ceiling few
+photos see and hold a window's splats on its wall (:mod:`.sunk_lights`), with the plane
+prior on or off.
 Sweeping a scene's main directions for planes is Gallup et al. 2007's idea; here
 it runs over the points, not pixels: pixel-wise photo-consistency on plain
 walls put only a quarter of their pixels within 6 cm (``fast``'s 120-pixel
@@ -373,6 +375,57 @@ def ceiling_from_walls(box: list[Plane], points: np.ndarray, tau: float,
     uv = points @ axes.T
     lo, hi = np.percentile(uv, 2, axis=0), np.percentile(uv, 98, axis=0)
     return Plane(-vertical, -height, lo, hi, axes, 0)
+
+
+FAR_WALL_CROWD = 2.0
+"""A room box's missing far wall is the offset where the points beyond the cameras crowd
+most, when it crowds at least this many times their median bin (:func:`far_walls`)..."""
+FAR_WALL_SHARE = 0.005
+"""...and holds at least this share of all the points."""
+
+
+def far_walls(box: list[Plane], points: np.ndarray, cameras: np.ndarray, tau: float,
+              up: np.ndarray) -> list[Plane]:
+    """The walls facing the walls of a room's ``box`` (:func:`room_box`) that have none:
+    ``cameras`` (V, 3) the views' centres, ``up`` their mean up direction.
+
+    A wall with a large window holds few points round the window, so its offset bin
+    crowds too little for :func:`find_planes` (:data:`PEAK_OVER_MEDIAN`), and without it
+    the window's floating splats have no plane to go onto (:mod:`.sunk_lights`: the
+    chain bench's ``bulb:7`` and ``hall:5`` from photos, ``room_faces_missing``). Beyond
+    the cameras, along the normal of a wall whose opposite is missing, the points still
+    crowd most at the far wall (``bulb:7``: 55 points in its bin against a median of 17;
+    the hall's 37 against 14): that offset, where it crowds :data:`FAR_WALL_CROWD` times
+    the median bin and holds :data:`FAR_WALL_SHARE` of the points, is the far wall,
+    squared to the box (its patch the near wall's). Only walls (square to ``up``); only
+    for the box, which bounds where lights may be moved, not for the plane prior.
+    Measured by ``gaslight2usd bench --suite chain`` (the probe by the window)."""
+    up = np.asarray(up, np.float64)
+    norm = float(np.linalg.norm(up))
+    if not box or norm == 0 or len(points) < 30:
+        return []
+    up = up / norm
+    square = 1 - OWN_TILT ** 2 / 2
+    out = []
+    for wall in box:
+        if abs(wall.normal @ up) > OWN_TILT or any(p.normal @ wall.normal < -square
+                                                    for p in box):
+            continue  # a floor or ceiling, or a wall with its opposite
+        along = points @ wall.normal  # increasing away from the wall, across the room
+        start = float((cameras @ wall.normal).max()) + 2.0 * tau
+        stop = float(np.percentile(along, 99.5)) + tau
+        if stop <= start + 4.0 * tau:
+            continue
+        edges = np.arange(start, stop + tau / 2, tau / 2)
+        counts = np.convolve(np.histogram(along, edges)[0], [0.25, 0.5, 0.25], mode="same")
+        top = int(np.argmax(counts))
+        if (counts[top] < FAR_WALL_CROWD * float(np.median(counts))
+                or counts[top] < FAR_WALL_SHARE * len(points)):
+            continue
+        near = np.abs(along - (edges[top] + tau / 4)) < tau / 2
+        offset = float(along[near].mean())
+        out.append(Plane(-wall.normal, -offset, wall.lo, wall.hi, wall.axes, int(near.sum())))
+    return out
 
 
 class _Crowds:

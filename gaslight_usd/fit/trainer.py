@@ -68,6 +68,7 @@ from .planes import (
     Plane,
     PlanePrior,
     ceiling_from_walls,
+    far_walls,
     find_planes,
     on_a_plane,
     room_box,
@@ -168,12 +169,15 @@ class Trainer:
         self.room_planes: list[Plane] = room_box(found[0], len(pts))
         """The room's box among the large planes of the initial points
         (:func:`.planes.room_box`), with the ceiling where its walls stop if none was found
-        (:func:`.planes.ceiling_from_walls`): the bound on a sunk light's move
-        (:mod:`.sunk_lights`)."""
-        ceiling = ceiling_from_walls(self.room_planes, pts, found[1],
-                                     np.mean([-c.R[1] for c in cams], axis=0))
+        (:func:`.planes.ceiling_from_walls`) and a window's wall too sparse to be found
+        (:func:`.planes.far_walls`): the bound on a sunk light's move and the planes a
+        window's splats are put on (:mod:`.sunk_lights`)."""
+        up = np.mean([-c.R[1] for c in cams], axis=0)
+        ceiling = ceiling_from_walls(self.room_planes, pts, found[1], up)
         if ceiling is not None:
             self.room_planes.append(ceiling)
+        self.room_planes += far_walls(self.room_planes, pts,
+                                      np.array([c.center for c in cams]), found[1], up)
         if self.use_planes:
             self.planes = PlanePrior(*found, self.device)
             self._assign_planes()
