@@ -389,8 +389,9 @@ def far_walls(box: list[Plane], points: np.ndarray, cameras: np.ndarray, tau: fl
     """The walls facing the walls of a room's ``box`` (:func:`room_box`) that have none:
     ``cameras`` (V, 3) the views' centres, ``up`` their mean up direction.
 
-    A wall with a large window holds few points round the window, so its offset bin
-    crowds too little for :func:`find_planes` (:data:`PEAK_OVER_MEDIAN`), and without it
+    A wall with a large window holds few points round the window and hides the window's
+    fill behind it, so :func:`find_planes` refuses it (its bin crowds too little,
+    :data:`PEAK_OVER_MEDIAN`, or it hides too much, :data:`MAX_BEHIND`), and without it
     the window's floating splats have no plane to go onto (:mod:`.sunk_lights`: the
     chain bench's ``bulb:7`` and ``hall:5`` from photos, ``room_faces_missing``). Beyond
     the cameras, along the normal of a wall whose opposite is missing, the points still
