@@ -333,25 +333,22 @@ def room_box_fit(planes: list[dict[str, Any]], room: dict[str, Any]) -> dict[str
     lo, hi = np.asarray(room["min"], np.float64), np.asarray(room["max"], np.float64)
     mid = (lo + hi) / 2.0
     normals = np.array([p["normal"] for p in planes], np.float64).reshape(-1, 3)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     offsets = np.array([p["offset"] for p in planes], np.float64)
-    if len(normals):
-        normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     cos_min = math.cos(math.radians(ROOM_FACE_TILT_DEG))
     found, missing, offsets_m = 0, [], []
     for k, name in enumerate(ROOM_FACES):
         axis, side = divmod(k, 2)
         centre = mid.copy()
         centre[axis] = (lo if side == 0 else hi)[axis]
-        along = np.abs(normals[:, axis]) if len(normals) else np.zeros(0)
-        dist = np.abs(normals @ centre - offsets) if len(normals) else np.zeros(0)
-        on = (along >= cos_min) & (dist <= ROOM_FACE_NEAR_M)
+        dist = np.abs(normals @ centre - offsets)
+        on = (np.abs(normals[:, axis]) >= cos_min) & (dist <= ROOM_FACE_NEAR_M)
         if on.any():
             found += 1
             offsets_m.append(float(dist[on].min()))
         else:
             missing.append(name)
-    tilt = (np.degrees(np.arccos(np.clip(np.abs(normals).max(axis=1), 0.0, 1.0)))
-            if len(normals) else np.zeros(0))
+    tilt = np.degrees(np.arccos(np.clip(np.abs(normals).max(axis=1, initial=0.0), 0.0, 1.0)))
     return {"room_faces_found": found, "room_faces_missing": " ".join(missing),
             "room_face_offset_m": round(max(offsets_m), 3) if offsets_m else float("nan"),
             "room_box_tilt_deg": round(float(tilt.max()), 2) if len(tilt) else float("nan")}

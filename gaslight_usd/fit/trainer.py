@@ -164,8 +164,8 @@ class Trainer:
                                         self.device)
         self.model.antialiased = cfg.antialiased
         self.planes = None
-        found = find_planes(pts, np.array([c.center for c in cams]),
-                            np.random.default_rng([self.seed, 11]))
+        centres = np.array([c.center for c in cams])
+        found = find_planes(pts, centres, np.random.default_rng([self.seed, 11]))
         self.room_planes: list[Plane] = room_box(found[0], len(pts))
         """The room's box among the large planes of the initial points
         (:func:`.planes.room_box`), with the ceiling where its walls stop if none was found
@@ -176,8 +176,7 @@ class Trainer:
         ceiling = ceiling_from_walls(self.room_planes, pts, found[1], up)
         if ceiling is not None:
             self.room_planes.append(ceiling)
-        self.room_planes += far_walls(self.room_planes, pts,
-                                      np.array([c.center for c in cams]), found[1], up)
+        self.room_planes += far_walls(self.room_planes, pts, centres, found[1], up)
         if self.use_planes:
             self.planes = PlanePrior(*found, self.device)
             self._assign_planes()
