@@ -187,6 +187,29 @@ def test_a_window_wall_refused_for_what_it_hides_is_added_to_the_room_box():
                      np.array([0.0, 1.0, 0.0])) == []
 
 
+def test_a_window_wall_is_added_where_the_box_has_neither_wall_of_that_direction():
+    """The hall with a dark frame of its window: neither end wall is a plane (the x- side
+    here is open, only the fill's scatter), so the direction has no wall to face. Square
+    to the walls found, the window's side still crowds and gets its wall, facing the
+    cameras and spanning the room; the open side gets none."""
+    rng = np.random.default_rng(5)
+    pts = _room_with_a_window_wall(rng, 80, through_window=200)
+    pts = pts[np.abs(pts[:, 0] - ROOM_LO[0]) > 0.1]  # no x- wall either
+    cams = cameras_inside(rng)
+    planes, tau = find_planes(pts, cams, rng)
+    box = room_box(planes, len(pts))
+    assert not any(abs(p.normal[0]) > 0.99 for p in box)  # no wall along x at all
+    added = far_walls(box, pts, cams, tau, np.array([0.0, 1.0, 0.0]))
+    assert len(added) == 1
+    wall = added[0]
+    assert wall.normal[0] < -0.99
+    assert -wall.offset == pytest.approx(ROOM_HI[0], abs=0.03)
+    assert np.all(cams @ wall.normal - wall.offset > 0)
+    # its patch spans the room's width and height (a ray to the window's middle crosses it)
+    ratio = wall.crossing(cams[:1], np.array([[4.0, 1.5, 0.0]]))[0]
+    assert np.isfinite(ratio)
+
+
 def test_no_far_wall_where_nothing_crowds_beyond_the_cameras():
     """An open side (no wall, only the fill's scatter past the cameras) gets no wall."""
     rng = np.random.default_rng(7)
@@ -194,6 +217,22 @@ def test_no_far_wall_where_nothing_crowds_beyond_the_cameras():
     cams = cameras_inside(rng)
     planes, tau = find_planes(pts, cams, rng)
     box = room_box(planes, len(pts))
+    assert far_walls(box, pts, cams, tau, np.array([0.0, 1.0, 0.0])) == []
+
+
+def test_no_far_wall_where_the_points_only_thin_away_from_the_cameras():
+    """Furniture just past the cameras crowds the first bins beyond them, and thins out
+    from there: no wall (``bulb:11`` with dark frames had one put 0.7 m inside the room so).
+    A wall is a crowd that rises over the bins between the cameras and it."""
+    rng = np.random.default_rng(7)
+    pts = _room_with_a_window_wall(rng, 0)
+    cams = cameras_inside(rng)
+    ramp = np.column_stack([cams[:, 0].max() + 0.1 + rng.exponential(0.25, 300),
+                            rng.uniform(0.0, 1.0, 300), rng.uniform(-2.0, 2.0, 300)])
+    pts = np.concatenate([pts, ramp])
+    planes, tau = find_planes(pts, cams, rng)
+    box = room_box(planes, len(pts))
+    assert not any(p.normal[0] < -0.99 for p in box)
     assert far_walls(box, pts, cams, tau, np.array([0.0, 1.0, 0.0])) == []
 
 

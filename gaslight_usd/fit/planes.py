@@ -379,53 +379,75 @@ def ceiling_from_walls(box: list[Plane], points: np.ndarray, tau: float,
 
 FAR_WALL_CROWD = 2.0
 """A room box's missing far wall is the offset where the points beyond the cameras crowd
-most, when it crowds at least this many times their median bin (:func:`far_walls`)..."""
+most, when it crowds at least this many times their median bin and the emptiest bin
+between the cameras and it (:func:`far_walls`)..."""
 FAR_WALL_SHARE = 0.005
 """...and holds at least this share of all the points."""
 
 
 def far_walls(box: list[Plane], points: np.ndarray, cameras: np.ndarray, tau: float,
               up: np.ndarray) -> list[Plane]:
-    """The walls facing the walls of a room's ``box`` (:func:`room_box`) that have none:
-    ``cameras`` (V, 3) the views' centres, ``up`` their mean up direction.
+    """The walls a room's ``box`` (:func:`room_box`) misses on one side of its walls' main
+    directions: ``cameras`` (V, 3) the views' centres, ``up`` their mean up direction.
 
     A wall with a large window holds few points round the window and hides the window's
     fill behind it, so :func:`find_planes` refuses it (its bin crowds too little,
     :data:`PEAK_OVER_MEDIAN`, or it hides too much, :data:`MAX_BEHIND`), and without it
     the window's floating splats have no plane to go onto (:mod:`.sunk_lights`: the
-    chain bench's ``bulb:7`` and ``hall:5`` from photos, ``room_faces_missing``). Beyond
-    the cameras, along the normal of a wall whose opposite is missing, the points still
-    crowd most at the far wall (``bulb:7``: 55 points in its bin against a median of 17;
-    the hall's 37 against 14): that offset, where it crowds :data:`FAR_WALL_CROWD` times
-    the median bin and holds :data:`FAR_WALL_SHARE` of the points, is the far wall,
-    squared to the box (its patch the near wall's). Only walls (square to ``up``); only
-    for the box, which bounds where lights may be moved, not for the plane prior.
-    Measured by ``gaslight2usd bench --suite chain`` (the probe by the window)."""
+    chain bench's ``bulb:7`` and ``hall:5`` from photos, ``room_faces_missing``; with a
+    dark frame of the window the hall had neither end wall). Beyond the cameras, along a
+    main direction with no wall on its far side (the box's walls' normals and the
+    direction square to them and the vertical), the points still crowd most at the far
+    wall (``bulb:7``: 55 points in its bin against a median of 17; the hall's 37 against
+    14, 64 against 20 with the dark frame): that offset, where it crowds
+    :data:`FAR_WALL_CROWD` times the median bin and the emptiest bin between the cameras
+    and it (furniture just past the cameras crowds the first bins and only thins away
+    from them: ``bulb:11`` with dark frames had a wall put 0.7 m inside the room) and
+    holds :data:`FAR_WALL_SHARE` of the points, is the far wall, squared to the box (its
+    patch the opposite wall's, else the points' spread over it). Only walls; only for the
+    box, which bounds where lights may be moved, not for the plane prior. Measured by
+    ``gaslight2usd bench --suite chain`` (the probe by the window)."""
     up = np.asarray(up, np.float64)
     norm = float(np.linalg.norm(up))
     if not box or norm == 0 or len(points) < 30:
         return []
     up = up / norm
     square = 1 - OWN_TILT ** 2 / 2
+    walls = [p for p in box if abs(p.normal @ up) <= OWN_TILT]
+    if not walls:
+        return []
+    level = [p.normal for p in box if abs(p.normal @ up) >= square]
+    vertical = level[0] * np.sign(level[0] @ up) if level else up
+    across = np.cross(vertical, walls[0].normal)
+    across /= np.linalg.norm(across)
+    sides = [(wall.normal, wall) for wall in walls]
+    sides += [(sign * across, None) for sign in (1.0, -1.0)
+              if not any(abs(w.normal @ across) >= square for w in walls)]
     out = []
-    for wall in box:
-        if abs(wall.normal @ up) > OWN_TILT or any(p.normal @ wall.normal < -square
-                                                    for p in box):
-            continue  # a floor or ceiling, or a wall with its opposite
-        along = points @ wall.normal  # increasing away from the wall, across the room
-        start = float((cameras @ wall.normal).max()) + 2.0 * tau
+    for direction, near in sides:
+        if any(p.normal @ direction < -square for p in box + out):
+            continue  # the box has a wall on that side
+        along = points @ direction  # increasing away from the cameras, across the room
+        start = float((cameras @ direction).max()) + 2.0 * tau
         stop = float(np.percentile(along, 99.5)) + tau
         if stop <= start + 4.0 * tau:
             continue
         edges = np.arange(start, stop + tau / 2, tau / 2)
         counts = np.convolve(np.histogram(along, edges)[0], [0.25, 0.5, 0.25], mode="same")
         top = int(np.argmax(counts))
-        if (counts[top] < FAR_WALL_CROWD * float(np.median(counts))
+        if (top == 0 or counts[top] < FAR_WALL_CROWD * float(np.median(counts))
+                or counts[top] < FAR_WALL_CROWD * float(counts[:top].min())
                 or counts[top] < FAR_WALL_SHARE * len(points)):
             continue
-        near = np.abs(along - (edges[top] + tau / 4)) < tau / 2
-        offset = float(along[near].mean())
-        out.append(Plane(-wall.normal, -offset, wall.lo, wall.hi, wall.axes, int(near.sum())))
+        crowd = np.abs(along - (edges[top] + tau / 4)) < tau / 2
+        offset = float(along[crowd].mean())
+        if near is not None:
+            lo, hi, axes = near.lo, near.hi, near.axes
+        else:
+            axes = np.stack([np.cross(direction, vertical), vertical])
+            uv = points @ axes.T
+            lo, hi = np.percentile(uv, 2, axis=0), np.percentile(uv, 98, axis=0)
+        out.append(Plane(-direction, -offset, lo, hi, axes, int(crowd.sum())))
     return out
 
 
