@@ -13,12 +13,14 @@ from test_sightings import Y709, _cameras, _views
 
 from gaslight_usd.fit.data import FitData
 from gaslight_usd.fit.frame_edge import light_regions
+from gaslight_usd.fit.gather import aimed_camera
 from gaslight_usd.fit.init import initial_points
 from gaslight_usd.fit.light_seeds import (
     LightSeedPoints,
     clipped_at,
     find_light_seeds,
     measured_light_seeds,
+    seed_lights,
     seed_points,
 )
 from gaslight_usd.fit.presets import FitConfig
@@ -27,6 +29,7 @@ from gaslight_usd.lights import search_lights
 from gaslight_usd.poses.colmap import ColmapModel
 from gaslight_usd.resize import area_resize
 from gaslight_usd.sightings import (
+    Sightings,
     block_max,
     peak_map,
     sight_lights,
@@ -97,6 +100,29 @@ def test_a_view_that_clipped_the_lamp_but_filled_it_under_its_white_is_not_again
         np.float32)
     peaks = [peak_map(im, Y709, w, m) for im, w, m in zip(views, WHITES, masks, strict=True)]
     assert not clipped_at(lamp.position[None], cams, peaks)[0, v]
+
+
+def test_a_bulbs_outlines_meeting_again_along_their_rays_make_one_light():
+    """Four nearby views frame a bulb (a dark frame among them outlines it too); their
+    centroid rays miss it by a fraction of a degree, so three of them also meet 0.19 m
+    behind it, inside all their cones, with the fourth framing that place and seeing the
+    bulb beside it. One light, not a ghost behind it (``bulb:11`` with dark frames had
+    two, 0.24 and 0.36 m off)."""
+    bulb = np.array([0.0, 1.0, 3.0])
+    cams = [aimed_camera(np.array([x, 1.0, 0.0]), bulb, 0.75, 160)
+            for x in (-0.75, -0.25, 0.25, 0.75)]
+    rng = np.random.default_rng(2)
+    axes = []
+    for cam in cams:
+        d = (bulb - cam.center) / np.linalg.norm(bulb - cam.center)
+        off = np.radians(0.6) * rng.normal(size=3)
+        d = d + off - (off @ d) * d
+        axes.append(d / np.linalg.norm(d))
+    cones = Sightings(np.array([c.center for c in cams]), np.arange(4), np.array(axes),
+                      np.full(4, np.radians(1.5)), np.ones(4, bool), np.ones(4), 1.0)
+    seeds = seed_lights(cones, cams)
+    assert len(seeds) == 1
+    assert np.linalg.norm(seeds[0].position - bulb) < 0.1
 
 
 def test_noise_specks_over_the_white_place_no_lights():
@@ -220,3 +246,35 @@ def test_a_fit_of_measured_views_finds_the_lamp_and_records_no_clipped_light():
     assert len(started) == 1 and np.linalg.norm(started[0].position - LAMP) < 0.05
     assert trainer._light_seeds() == []
     assert trainer._seeded_lights().lights == 0
+
+
+def test_a_dark_frames_bulb_pixels_start_on_the_seeded_bulb():
+    """A dark frame measures a bulb the other views clipped and filled a few times the
+    white: no depth of its rays agrees with those fills, so the sweep alone put them
+    anywhere along the rays (``bulb:11``: 0.1-14 m off). Its rays through the seeded
+    bulb start on it; the other views' clipped pixels keep their sweep."""
+    from gaslight_usd.fit.init import SEED_REACH, bright_points
+
+    bulb = np.array([0.0, 1.0, 3.0])
+    cams = [aimed_camera(np.array([x, 1.0, 0.0]), bulb + [0.2, 0.1, 0.0], 0.75, 96)
+            for x in (-0.75, -0.25, 0.25, 0.75)]
+    images, floors = [], []
+    for v, cam in enumerate(cams):
+        uv, _ = cam.project(bulb[None])
+        ys, xs = np.mgrid[0:cam.height, 0:cam.width]
+        disc = np.hypot(xs + 0.5 - uv[0, 0], ys + 0.5 - uv[0, 1]) <= 1.2
+        image = np.full((cam.height, cam.width, 3), 0.5, np.float32)
+        if v == 0:  # the dark frame: measured
+            image[disc] = 5000.0
+            floors.append(np.zeros((cam.height, cam.width), np.float32))
+        else:  # clipped at the white, filled three times it
+            image[disc] = 3.0
+            floors.append(np.where(disc, 1.0, 0.0).astype(np.float32))
+        images.append(image)
+    seeds = (bulb[None], np.array([0.06]))  # its outlines' size: 1.2 px at 3 m
+    pts, cols = bright_points(cams, images, 12, np.random.default_rng(0), floors=floors,
+                              y_weights=Y709, seeds=seeds)
+    assert len(pts) > 0 and (cols @ Y709).min() > 1000.0  # the dark frame's pixels
+    # on the rays' points nearest the seed: within the reach of its size (the sweep alone:
+    # 0.17-2 m off)
+    assert np.linalg.norm(pts - bulb, axis=1).max() < SEED_REACH * 0.06

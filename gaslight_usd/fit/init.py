@@ -26,6 +26,7 @@ random depth. Scales start at the mean distance to the 3 nearest neighbours.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -167,10 +168,47 @@ def measured_colours(points: np.ndarray, colours: np.ndarray, cameras: list[Pinh
     return best
 
 
+SEED_REACH = 2.0
+"""A measured light pixel whose ray passes within this many of a seeded light's sizes
+goes onto that light (:func:`bright_points`)..."""
+POINT_LIKE_DEG = 3.0
+"""...when the light is a point to that view: at most this wide (half-angle). A bulb's
+seed spans 0.9-1.5 deg from the chain bench's cameras, a ceiling panel's 5-6.5: a flat
+light is no point, and the ray's point nearest its centre is off its face (`panels:7`
+with dark frames lost 2.6-3.1 dB at its panel's probe so)."""
+
+
+def _onto_seeds(cam: PinholeCamera, px: np.ndarray, swept: np.ndarray, centres: np.ndarray,
+                sizes: np.ndarray) -> np.ndarray:
+    """``swept`` (n, 3), the points of pixels ``px`` whose rays pass within
+    :data:`SEED_REACH` sizes of a point-like seed (:data:`POINT_LIKE_DEG`; the first
+    along the ray) and that the sweep put farther along the ray than that from the seed,
+    moved to the ray's point nearest that seed's centre."""
+    rays = depth_rays(cam, px)
+    rays = rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    rel = np.asarray(centres, np.float64) - cam.center  # (K, 3)
+    along = rays @ rel.T  # (n, K)
+    miss = np.linalg.norm(rel[None] - along[..., None] * rays[:, None], axis=-1)
+    size = np.asarray(sizes, np.float64)[None]
+    near = ((along > 0) & (miss <= SEED_REACH * size)
+            & (size <= math.tan(math.radians(POINT_LIKE_DEG)) * along))
+    first = np.argmin(np.where(near, along, np.inf), axis=1)
+    depth = along[np.arange(len(px)), first]
+    reach = SEED_REACH * np.asarray(sizes, np.float64)[first]
+    # a sweep that found the light keeps its depth
+    swept_depth = np.einsum("ij,ij->i", np.asarray(swept, np.float64) - cam.center, rays)
+    hit = near.any(axis=1) & (np.abs(swept_depth - depth) > reach)
+    out = np.array(swept, np.float64, copy=True)
+    out[hit] = cam.center + rays[hit] * depth[hit, None]
+    return out
+
+
 def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
                   rng: np.random.Generator, ratio: float = BRIGHT_RATIO,
                   depth_steps: int = 48, floors: list[np.ndarray | None] | None = None,
-                  y_weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  y_weights: np.ndarray | None = None,
+                  seeds: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Points on light sources: pixels over ``ratio`` x the median of all views, plane-swept.
 
     Lamps and windows have no features to triangulate and sit off the
@@ -180,6 +218,15 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
     measured sample (:func:`measured_colours`); without them every pixel counts as
     measured and keeps its own colour. ``y_weights``: the views' luminance weights
     (default Rec.709's).
+
+    ``seeds`` (centres (K, 3), sizes (K,)): the compact lights the clipped outlines
+    placed (:mod:`.light_seeds`). A pixel its own view *measured* (a dark frame's bulb,
+    with the clip ``floors``) whose ray passes within :data:`SEED_REACH` sizes of one
+    that is a point to it (:data:`POINT_LIKE_DEG`) goes onto it where the sweep put it
+    off the light's depth by more: the other views clipped that bulb, and their fills (a
+    few times the white) agree with its thousands nowhere, so the sweep put ``bulb:11``'s
+    dark-frame pixels 0.1-14 m off, and the fit grew a bright smear along the dark
+    frame's rays and opaque splats round it that hid the bulb from the room.
     """
     luma = _luma(y_weights)
     lum = [im @ luma for im in images]
@@ -196,11 +243,15 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
             continue
         pick = yx[rng.choice(len(yx), n, replace=False)]
         px = pick[:, ::-1] + rng.uniform(0, 1, (n, 2))
-        pts.append(_sweep_depths(v, px, cameras, images, depths, rng))
-        cols.append(_sample(images[v], px))
+        at = _sweep_depths(v, px, cameras, images, depths, rng)
         floor = floors[v] if floors is not None else None
         clipped.append(np.zeros(n, bool) if floor is None else _sample(floor[..., None],
                                                                        px)[:, 0] > 0)
+        if seeds is not None and floors is not None and len(seeds[0]):
+            measured = ~clipped[-1]
+            at[measured] = _onto_seeds(cameras[v], px[measured], at[measured], *seeds)
+        pts.append(at)
+        cols.append(_sample(images[v], px))
     if not pts:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
     pts, cols = np.concatenate(pts), np.concatenate(cols).astype(np.float32)
@@ -302,8 +353,10 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
     colours (:func:`bright_points`); ``y_weights``: the views' luminance weights
     (default Rec.709's), to find the lights.
     """
+    known = (None if seeded is None or seeded.centres is None or seeded.sizes is None
+             else (seeded.centres, seeded.sizes))
     pts, cols, how = _unseeded_points(model, cameras, images, names, count, rng, floors,
-                                      y_weights, planar_fill)
+                                      y_weights, planar_fill, known)
     if seeded is not None:
         seeded = seeded.missing_from(pts)
     if seeded is not None and seeded.lights:
@@ -318,7 +371,8 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
 def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
                      images: list[np.ndarray], names: list[str], count: int,
                      rng: np.random.Generator, floors: list[np.ndarray | None] | None,
-                     y_weights: np.ndarray | None, planar_fill: bool = True
+                     y_weights: np.ndarray | None, planar_fill: bool = True,
+                     seeds: tuple[np.ndarray, np.ndarray] | None = None
                      ) -> tuple[np.ndarray, np.ndarray, str]:
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
@@ -327,7 +381,7 @@ def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
             pick = np.sort(rng.choice(len(pts), count // 2, replace=False))
             pts, colours = pts[pick], colours[pick]
         lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng,
-                                              floors=floors, y_weights=y_weights)
+                                              floors=floors, y_weights=y_weights, seeds=seeds)
         seen = seen_by(model, names)
         fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
                                                  cameras, images,
