@@ -11,12 +11,14 @@ import numpy as np
 import pytest
 
 from gaslight_usd.bench.dark_frames import (
+    DARK_SUFFIX,
     HEADROOM,
     SHORTEST_EXPOSURE,
     SMALLEST_APERTURE,
     camera_settings,
     dark_exposure,
     dark_frame_photos,
+    poses_with_dark_frames,
 )
 from gaslight_usd.bench.suite_chain import scene_lights
 from gaslight_usd.colour import convert
@@ -73,3 +75,29 @@ def test_each_light_gets_a_frame_that_sees_it_unclipped(tmp_path):
     assert (tmp_path / "photos" / unchanged[0]).resolve() == \
         (EXAMPLE / "photos" / unchanged[0]).resolve()
     assert json.loads((tmp_path / "dark_frames.json").read_text()) == chosen
+
+
+def test_extra_dark_frames_are_added_beside_their_photos_and_posed_as_them(tmp_path):
+    """The README's capture: every photo kept, each darker frame added as
+    ``<stem>_dark.jpg`` at the pose of the photo it was made from."""
+    info = json.loads((EXAMPLE / "scene.json").read_text())
+    chosen = dark_frame_photos(EXAMPLE, tmp_path / "photos", scene_lights(info), extra=True)
+    assert sorted(c["light"] for c in chosen.values()) == ["lamp", "window"]
+    originals = sorted(p.name for p in (EXAMPLE / "photos").glob("*.jpg"))
+    written = sorted(p.name for p in (tmp_path / "photos").glob("*.jpg"))
+    assert written == sorted(originals + list(chosen))
+    for name, what in chosen.items():
+        assert name == what["of"].replace(".jpg", f"{DARK_SUFFIX}.jpg")
+        assert (tmp_path / "photos" / what["of"]).resolve() == \
+            (EXAMPLE / "photos" / what["of"]).resolve()  # the photo itself, unchanged
+        dark = read_image(tmp_path / "photos" / name).exposure.exposure_time
+        shot = read_image(EXAMPLE / "photos" / what["of"]).exposure.exposure_time
+        assert dark < shot
+    model = read_poses(poses_with_dark_frames(EXAMPLE, chosen, tmp_path / "sparse"))
+    cams = {c.name: c for c in model.cameras}
+    assert sorted(cams) == sorted(originals + list(chosen))
+    assert len(set(model.image_ids)) == len(model.cameras)
+    for name, what in chosen.items():
+        np.testing.assert_allclose(cams[name].center, cams[what["of"]].center, atol=1e-9)
+        np.testing.assert_allclose(cams[name].R, cams[what["of"]].R, atol=1e-9)
+        assert cams[name].fx == cams[what["of"]].fx

@@ -12,12 +12,19 @@ written as the camera model of ``examples/make_room.py`` writes a photo
 (``clip(radiance * t * K)``, sRGB OETF, 8-bit JPEG, EXIF ExposureTime / FNumber /
 ISO). The other photos are linked unchanged. Used by ``bench --suite chain``'s
 method "recursive + dark frames".
+
+That method re-exposes the chosen photo in place, so the set loses that photo's view
+of the room round the light. The README's advice is an *extra* frame from a
+neighbouring photo's position: with ``extra`` the darker frame is written beside the
+photo it was made from (``<stem>_dark.jpg``, :data:`DARK_SUFFIX`) and posed as that
+photo (:func:`poses_with_dark_frames`), the method "recursive + extra dark frames".
 """
 
 from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +35,7 @@ from ..atomic import atomic_path
 from ..colour import convert
 from ..errors import GaslightError
 from ..imageio import read_header, read_image
-from ..poses import read_poses
+from ..poses import read_poses, write_poses
 
 HEADROOM = 0.9
 """The light's brightest pixel lands at this fraction of white (JPEG ringing, 1/3-stop
@@ -118,13 +125,18 @@ def write_linear_photo(path: Path, linear: np.ndarray, settings: tuple[float, fl
         out.close()
 
 
-def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]]
-                      ) -> dict[str, dict[str, Any]]:
-    """``dst``: the scene's photos, one per light re-exposed for that light.
+DARK_SUFFIX = "_dark"
+"""An extra dark frame's name: the photo it was made from, this appended to its stem."""
 
-    Returns, per re-exposed photo, the light it was aimed at, the exposure change in
-    stops, its shutter and f-number, and whether the light still clips (also written
-    beside ``dst`` as ``dark_frames.json``).
+
+def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]],
+                      extra: bool = False) -> dict[str, dict[str, Any]]:
+    """``dst``: the scene's photos, one per light re-exposed for that light (``extra``:
+    the re-exposed frame added beside the photo, ``<stem>_dark.jpg``, the photo kept).
+
+    Returns, per dark frame (by its file name), the light it was aimed at, the exposure
+    change in stops, its shutter and f-number, whether the light still clips and the
+    photo it was made from (also written beside ``dst`` as ``dark_frames.json``).
     """
     info = json.loads((folder / "scene.json").read_text())
     k_camera = float(info["exposure"]["K"])
@@ -132,26 +144,53 @@ def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]]
     cameras = read_poses(folder / "sparse" / "0").cameras
     dst.mkdir(parents=True, exist_ok=True)
     chosen: dict[str, dict[str, Any]] = {}
+    used: set[str] = set()
     for light in lights:
         center = np.asarray(light["center"], np.float64)
-        cam = light_view(cameras, center, set(chosen))
+        cam = light_view(cameras, center, used)
         if cam is None:
             continue
+        used.add(cam.name)
         photo = folder / "photos" / cam.name
         truth = read_image(folder / "truth" / (Path(cam.name).stem + ".exr")).pixels
         uv, _ = cam.project(center[None])
         wanted = dark_exposure(truth, uv[0], k_camera)
         shutter, aperture = camera_settings(wanted, f_number)
         t_was = float(read_header(photo).getattribute("ExposureTime"))
-        write_photo(dst / cam.name, truth, (shutter, aperture), k_camera, f_number, photo)
+        name = (Path(cam.name).stem + DARK_SUFFIX + Path(cam.name).suffix if extra
+                else cam.name)
+        write_photo(dst / name, truth, (shutter, aperture), k_camera, f_number, photo)
         given = shutter * (f_number / aperture) ** 2
-        chosen[cam.name] = {"light": light["name"],
-                            "stops": round(math.log2(given / t_was), 2),
-                            "shutter_s": shutter, "f_number": round(aperture, 2),
-                            "still_clips": given > wanted * 1.001}
+        chosen[name] = {"light": light["name"],
+                        "stops": round(math.log2(given / t_was), 2),
+                        "shutter_s": shutter, "f_number": round(aperture, 2),
+                        "still_clips": given > wanted * 1.001, "of": cam.name}
     for photo in sorted((folder / "photos").glob("*.jpg")):
         link = dst / photo.name
         if photo.name not in chosen and not link.exists():
             link.symlink_to(photo.resolve())
     (dst.parent / "dark_frames.json").write_text(json.dumps(chosen, indent=1))
     return chosen
+
+
+def poses_with_dark_frames(folder: Path, chosen: dict[str, dict[str, Any]], out: Path
+                           ) -> Path:
+    """The scene's poses (``folder/sparse/0``) with each extra dark frame of ``chosen``
+    (:func:`dark_frame_photos` with ``extra``) posed as the photo it was made from,
+    written to ``out`` (a COLMAP model folder, returned)."""
+    model = read_poses(folder / "sparse" / "0")
+    by_name = {cam.name: k for k, cam in enumerate(model.cameras)}
+    cameras, image_ids, camera_ids = list(model.cameras), list(model.image_ids), \
+        list(model.camera_ids)
+    points2d = None if model.points2d is None else list(model.points2d)
+    for name, what in chosen.items():
+        k = by_name.get(what["of"])
+        if k is None or name in by_name:
+            continue
+        cameras.append(replace(model.cameras[k], name=name))
+        image_ids.append(max(image_ids, default=len(cameras) - 1) + 1)
+        camera_ids.append(camera_ids[k])
+        if points2d is not None:
+            points2d.append(np.zeros((0, 3)))
+    return write_poses(out, replace(model, cameras=cameras, image_ids=image_ids,
+                                    camera_ids=camera_ids, points2d=points2d))

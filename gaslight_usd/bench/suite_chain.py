@@ -19,9 +19,11 @@ photos with the true poses (so the uplift and the fit are measured, not SfM), on
 * ``recursive, uplift's power`` -- the same uplift and fit, the clipped lights left at the
   uplift's power (not weighed by the surfaces they light, :mod:`gaslight_usd.fit.power`),
   to show what that buys;
-* ``recursive + dark frames`` -- the capture the README advises: one photo per light
-  re-exposed for that light (:mod:`.dark_frames`), the rest as shot; its unclipped
-  light pixels are measurements, the other photos' clipped ones bounds;
+* ``recursive + dark frames`` -- one photo per light re-exposed for that light
+  (:mod:`.dark_frames`), the rest as shot; its unclipped light pixels are measurements,
+  the other photos' clipped ones bounds;
+* ``recursive + extra dark frames`` -- the capture the README advises: those darker
+  frames added beside the photos they were made from (same pose), every photo kept;
 * ``truth HDR, planes off``, ``recursive, planes on`` -- those fits with the planes'
   prior the other way round (``fit --planes off|on``; by default it is on where no view
   clipped, as in the true HDR views, and off for clipped photos).
@@ -105,8 +107,8 @@ TRUTH_HDR_METHOD = "measured (the scene's true HDR views)"
 measured (:func:`gaslight_usd.lights.power_source`)."""
 SCENES = ("room", "bulb", "panels", "shade", "sun", "hall")
 METHODS = ("truth HDR", "clipped photos", "recursive", "recursive, fills as targets",
-           "recursive, uplift's power", "recursive + dark frames", "truth HDR, planes off",
-           "recursive, planes on")
+           "recursive, uplift's power", "recursive + dark frames",
+           "recursive + extra dark frames", "truth HDR, planes off", "recursive, planes on")
 PLANES_SUFFIXES = {", planes on": "on", ", planes off": "off"}
 """A method's suffix: the fit with ``--planes on`` or ``off`` (:mod:`gaslight_usd.fit.planes`;
 without one, the default ``auto``)."""
@@ -463,13 +465,17 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
                    if method.endswith(suffix)), None)
     for suffix in PLANES_SUFFIXES:
         method = method.removesuffix(suffix)
+    poses = folder / "sparse" / "0"
     if method == "truth HDR":
         hdr, scale = folder / "truth", 1.0
-    elif method == "recursive + dark frames":
-        from .dark_frames import dark_frame_photos
+    elif method in ("recursive + dark frames", "recursive + extra dark frames"):
+        from .dark_frames import dark_frame_photos, poses_with_dark_frames
 
         photos = work / "photos"
-        dark_frame_photos(folder, photos, scene_lights(info))
+        extra = method == "recursive + extra dark frames"
+        chosen = dark_frame_photos(folder, photos, scene_lights(info), extra=extra)
+        if extra:
+            poses = poses_with_dark_frames(folder, chosen, work / "sparse")
         hdr = uplift(photos, work / "run", method)
     else:
         hdr = uplift(folder / "photos", work, method)
@@ -480,7 +486,7 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
         cfg = cfg.updated(infer_power=False)  # the floor: the photos as they are
     if planes is not None:
         cfg = cfg.updated(plane_prior=planes)
-    data = load_fit_data(hdr, folder / "sparse" / "0", working_size=cfg.working_size)
+    data = load_fit_data(hdr, poses, working_size=cfg.working_size)
     if method != "truth HDR":
         scale = absolute_scale(data.attributes, info["exposure"])
     result = fit_splats(data, cfg, seed=seed, progress=progress)
