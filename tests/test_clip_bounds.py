@@ -136,6 +136,30 @@ def test_the_view_that_measured_a_clipped_light_is_never_held_out():
     assert _views_with_a_dark_frame(dark=4).split(8)[1] == [5, 12]
 
 
+def test_a_bulbs_dark_frame_makes_the_ring_round_the_clipped_regions_a_bound():
+    """With a view that measured the light at 400 x white, the measured pixels right round
+    each other view's clipped region are bounds at their own value (a splat as bright as
+    the light may spill its tail there); the clipped pixels keep their floors, the rest
+    stays measured. Photos alone keep their floors as they are."""
+    data = _views_with_a_dark_frame(dark=12)
+    floors = data.loss_floors()
+    assert floors[12] is None  # the dark frame clipped nothing
+    ring = np.zeros((6, 8), bool)
+    ring[1:5, 2:6] = True
+    ring[2:4, 3:5] = False
+    f = floors[0]
+    np.testing.assert_allclose(f[2:4, 3:5], 1.0)
+    np.testing.assert_allclose(f[ring], 0.3, rtol=1e-5)  # the measured grey, as a bound
+    assert (f > 0).sum() == 16  # 4 clipped + their 12-pixel ring; the rest measured
+    plain = _views_with_a_dark_frame(dark=-1)
+    for got, want in zip(plain.loss_floors(), plain.floors, strict=True):
+        np.testing.assert_array_equal(got, want)
+    # 400 over a white of 1 passes RING_RATIO; a view measuring 40 would not
+    weak = _views_with_a_dark_frame(dark=12)
+    weak.images[12][2:4, 3:5] = 40.0
+    np.testing.assert_array_equal(weak.loss_floors()[0], weak.floors[0])
+
+
 def _lamp_views(lamp_values: list[float], clipped: list[bool]):
     """Views from cameras in a row looking down +z at a 3x3-pixel lamp 3 m away on grey;
     each view's lamp pixels hold ``lamp_values[i]``, clipped or not."""

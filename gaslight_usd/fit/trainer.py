@@ -122,9 +122,9 @@ class Trainer:
         self.train, self.held = data.split(config.holdout_every)
         self.extent = scene_extent(data, self.train)
         self.targets = [torch.as_tensor(im, device=device) for im in data.images]
-        self.floors = [None if not config.clip_bounds or (f := data.floor(i)) is None
+        self.floors = [None if not config.clip_bounds or f is None
                        else torch.as_tensor(f, device=device)
-                       for i in range(len(data.images))]
+                       for f in data.loss_floors()]
         self.ceilings = [None if not config.clip_bounds or (c := data.ceiling(i)) is None
                          else torch.as_tensor(c, device=device)
                          for i in range(len(data.images))]
