@@ -180,15 +180,15 @@ def poses_with_dark_frames(folder: Path, chosen: dict[str, dict[str, Any]], out:
     written to ``out`` (a COLMAP model folder, returned)."""
     model = read_poses(folder / "sparse" / "0")
     by_name = {cam.name: k for k, cam in enumerate(model.cameras)}
-    cameras, image_ids, camera_ids = list(model.cameras), list(model.image_ids), \
-        list(model.camera_ids)
+    cameras, image_ids = list(model.cameras), list(model.image_ids)
+    camera_ids = list(model.camera_ids)
     points2d = None if model.points2d is None else list(model.points2d)
     for name, what in chosen.items():
         k = by_name.get(what["of"])
         if k is None or name in by_name:
             continue
         cameras.append(replace(model.cameras[k], name=name))
-        image_ids.append(max(image_ids, default=len(cameras) - 1) + 1)
+        image_ids.append(max(image_ids) + 1)  # read_poses numbers every image
         camera_ids.append(camera_ids[k])
         if points2d is not None:
             points2d.append(np.zeros((0, 3)))
