@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 from conftest import needs_example
+from test_lights import LAMP, _recoloured, room_scene
+from test_sightings import _cameras, _views, _with_sightings
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.colour import REC709_Y
@@ -24,6 +26,7 @@ from gaslight_usd.fit.power import (
     infer_light_power,
     light_is_clipped,
     light_sighting,
+    lights_to_weigh,
     measured_radiance,
     scaled_sh,
 )
@@ -547,3 +550,40 @@ def test_a_clipped_patch_brighter_than_any_lit_surface_is_weighed_as_a_light():
     assert patch.details["lit_surface_albedo"] > 2.0
     assert "inferred_log2_factor" in patch.details
     assert "lit surface" not in patch.details.get("note", "")
+
+
+def _clipped_room(lamp_rgb):
+    """``test_lights``' room (its lamp coloured ``lamp_rgb``) seen by eight photos that
+    clip at the white (1): their views, clip floors and the scene with their sightings,
+    the photos' outlines placing a light at the lamp (``light_seeds``)."""
+    scene, parts = room_scene()
+    rgb = scene.base_colours.copy()
+    rgb[parts["lamp"]] = lamp_rgb
+    scene = _recoloured(scene, rgb)
+    cams = _cameras()
+    images = _views(scene, cams)
+    floors = [np.where((img @ Y709) >= 1.0, np.float32(1.0), np.float32(0.0)) for img in images]
+    clipped = [np.minimum(img, 1.0) for img in images]
+    scene = _with_sightings(scene, cams, clipped)
+    scene.metadata["light_seeds"] = [{"position": LAMP.tolist(), "size": 0.05,
+                                      "views": [0, 1], "framed": 2}]
+    return scene, cams, clipped, floors, parts
+
+
+def test_a_light_the_uplift_filled_at_its_clip_level_is_not_weighed():
+    """A clipped cluster the uplift filled at about the white is a surface that just
+    clipped, as the uplift read it: weighed, such a patch of ceiling over the chain
+    bench's sunlit floor took that floor's light and came out 2^15 times its fill (the
+    photos' outlines had placed a light there). A lamp filled well over the white is
+    weighed."""
+    lamp_found = []
+    for level, weighed in ((20.0, True), (1.2, False)):
+        scene, cams, images, floors, parts = _clipped_room([level, level, level])
+        weigh, keep, _, _ = lights_to_weigh(scene, cams, images, floors, Y709)
+        at_lamp = [entry for entry in weigh + keep
+                   if np.linalg.norm(entry.position - LAMP) < 0.1]
+        assert len(at_lamp) == 1
+        lamp_found.append(at_lamp[0])
+        assert any(entry is at_lamp[0] for entry in weigh) == weighed
+    note = lamp_found[1].details["note"]
+    assert "filled it under 1.5 x the white" in note and lamp_found[1].source == "predicted"
