@@ -554,8 +554,8 @@ def test_a_clipped_patch_brighter_than_any_lit_surface_is_weighed_as_a_light():
 
 def _clipped_room(lamp_rgb):
     """``test_lights``' room (its lamp coloured ``lamp_rgb``) seen by eight photos that
-    clip at the white (1): their views, clip floors and the scene with their sightings,
-    the photos' outlines placing a light at the lamp (``light_seeds``)."""
+    clip at the white (1): the scene with their sightings and the photos' outlines placing
+    a light at the lamp (``light_seeds``), their cameras, views and clip floors."""
     scene, parts = room_scene()
     rgb = scene.base_colours.copy()
     rgb[parts["lamp"]] = lamp_rgb
@@ -567,7 +567,7 @@ def _clipped_room(lamp_rgb):
     scene = _with_sightings(scene, cams, clipped)
     scene.metadata["light_seeds"] = [{"position": LAMP.tolist(), "size": 0.05,
                                       "views": [0, 1], "framed": 2}]
-    return scene, cams, clipped, floors, parts
+    return scene, cams, clipped, floors
 
 
 def test_a_light_the_uplift_filled_at_its_clip_level_is_not_weighed():
@@ -578,7 +578,7 @@ def test_a_light_the_uplift_filled_at_its_clip_level_is_not_weighed():
     weighed."""
     lamp_found = []
     for level, weighed in ((20.0, True), (1.2, False)):
-        scene, cams, images, floors, parts = _clipped_room([level, level, level])
+        scene, cams, images, floors = _clipped_room([level, level, level])
         weigh, keep, _, _ = lights_to_weigh(scene, cams, images, floors, Y709)
         at_lamp = [entry for entry in weigh + keep
                    if np.linalg.norm(entry.position - LAMP) < 0.1]

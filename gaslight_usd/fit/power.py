@@ -156,12 +156,10 @@ JUST_CLIPPED_FILL = 1.5
 """A clipped light whose brightest splat the uplift filled under this many times the
 photos' white is not weighed: the uplift read its clipped region as a surface that just
 clipped (a flat near-white surround), not a source, and the fill stands. Weighed, such
-specks took the light of what the photos clipped elsewhere: a five-splat patch of
-ceiling at the white over the chain bench's sunlit floor came out 2^15 times its fill,
-and at ``balanced`` a four-splat one shared the ``bulb`` room's lamp's factor and
-doubled its uncertainty; the rooms' real lights were filled at 3.7-21 times the white
-(``gaslight2usd bench --suite chain``: ``false_lights_weighed``;
-``docs/measurements.md``, session 41)."""
+specks take the light of whatever else the photos clipped (a sunlit floor the uplift
+left short made a patch of ceiling over it a false lamp) or share a real lamp's factor;
+real bulbs and panels are filled well over the white. Measured by ``gaslight2usd bench
+--suite chain`` (``false_lights_weighed``; figures in ``docs/measurements.md``)."""
 
 
 
