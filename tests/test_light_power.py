@@ -587,3 +587,30 @@ def test_a_light_the_uplift_filled_at_its_clip_level_is_not_weighed():
         assert any(entry is at_lamp[0] for entry in weigh) == weighed
     note = lamp_found[1].details["note"]
     assert "filled it under 1.5 x the white" in note and lamp_found[1].source == "predicted"
+
+
+def test_an_uncertain_weighing_that_is_surely_over_the_fill_is_taken(monkeypatch):
+    """The fill is a lower bound: surfaces that put a lamp 9 stops over it, give or take
+    more than the fill's own 3 stops, still rule the fill out (one-sided, 95 %), as a
+    shaded lamp's clipped surroundings did; where the same stops are no surer than that,
+    the fill stands. (Round a shaded lamp the photos clip most surfaces, so their albedos'
+    level is not weighed: nor is it here.)"""
+    from gaslight_usd.fit import albedos, power
+
+    monkeypatch.setattr(albedos, "LEVEL_MEASURED_SHARE", 2.0)
+    monkeypatch.setattr(power, "SYSTEMATIC_STOPS", 4.5)
+    _, _, light = _weigh(512.0)
+    inferred, sigma = (light.details["inferred_log2_factor"],
+                       light.details["inferred_sigma_stops"])
+    assert sigma > power.MAX_INFERRED_SIGMA_STOPS
+    assert inferred >= power.SURE_OVER_FILL_SIGMAS * sigma
+    assert light.source == "inferred" and "note" not in light.details
+    assert math.log2(light.factor) == pytest.approx(inferred)
+    assert light.uncertainty_stops == pytest.approx(sigma, abs=1e-3)
+
+    monkeypatch.setattr(power, "SYSTEMATIC_STOPS", 7.0)
+    _, _, light = _weigh(512.0)
+    assert light.details["inferred_log2_factor"] < (power.SURE_OVER_FILL_SIGMAS
+                                                    * light.details["inferred_sigma_stops"])
+    assert light.source == "predicted" and light.factor == 1.0
+    assert "not surely over its fill" in light.details["note"]
