@@ -480,6 +480,9 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                               "uniformity_sigma_stops": round(float(weighed.uniform_sigma[i]),
                                                               3),
                               "uniformity_ran_off": bool(np.isfinite(weighed.at_least[i])),
+                              "uniformity_at_least": (round(float(weighed.at_least[i]), 3)
+                                                      if np.isfinite(weighed.at_least[i])
+                                                      else None),
                               "surface_points": int(np.isfinite(radiance).sum()),
                               "clipped_surface_points": int(np.isfinite(bound).sum()),
                               # the albedo cap, not the albedos' spread, decided: little
