@@ -112,11 +112,11 @@ fell through on some fits, sigma 1.95-2.3 about +5.6 where +6.9 was needed, and 
 left it 5-7 stops short: ``docs/measurements.md``, session 19.)..."""
 SURE_OVER_FILL_SIGMAS = 1.645
 """...unless, less sure, it still puts the light over its fill by this many of its own
-sigmas (a one-sided 95 % test). The fill is a lower bound: surfaces that say "several
-stops brighter, give or take four" rule the bound out, and keeping it left the shaded
-lamp of ``shade:7`` 5-8 stops short where its weighing said +8.1..+9.3 (sigma 3.5-4.5;
-``gaslight2usd bench --suite chain --scene shade:7``, ``docs/measurements.md``
-session 42)."""
+sigmas (a one-sided 95 % test). The fill is a lower bound: surfaces that say "many stops
+brighter, give or take more than the fill's own uncertainty" still rule the bound out.
+A shaded lamp, whose surroundings the photos clip, is weighed so (``gaslight2usd bench
+--suite chain --scene shade:7``; kept at its fill it was left stops short:
+``docs/measurements.md``, session 42)."""
 SYSTEMATIC_STOPS = 1.0
 """Error of the inference that resampling the points does not show (the gathered
 irradiance's sensitivity to how far off the surface it is taken, the fitted light's
