@@ -614,3 +614,54 @@ def test_an_uncertain_weighing_that_is_surely_over_the_fill_is_taken(monkeypatch
                                                     * light.details["inferred_sigma_stops"])
     assert light.source == "predicted" and light.factor == 1.0
     assert "not surely over its fill" in light.details["note"]
+
+
+def test_where_the_level_is_not_measured_an_evenness_that_ran_off_gives_its_floor(
+        monkeypatch):
+    """Round a shaded lamp the photos clip most surfaces, so their albedos' level is not
+    weighed; an evenness that runs off the search's top then says only "at least this".
+    The floor is the factor (a lower bound), not the search's top (which no acceptance
+    takes, leaving the light at its fill, a lower bound stops under the floor)."""
+    from gaslight_usd.fit import albedos
+
+    monkeypatch.setattr(albedos, "LEVEL_MEASURED_SHARE", 2.0)
+    radiance, bound, irr, _ = _level_room()
+    ran_off, sigma = np.array([16.0]), np.array([2.5])
+    k, spread = with_albedo_prior(ran_off, sigma, radiance, bound, irr,
+                                  at_least=np.array([9.0]))
+    assert k[0] == 9.0 and spread[0] == 2.5
+    k, _ = with_albedo_prior(ran_off, sigma, radiance, bound, irr)
+    assert k[0] == 16.0  # no floor: the search's top, which the weighing refuses
+    interior = np.array([10.0])
+    k, _ = with_albedo_prior(interior, sigma, radiance, bound, irr, at_least=np.array([np.nan]))
+    assert k[0] == 10.0
+
+
+def test_a_lamp_whose_evenness_runs_off_unmeasured_is_raised_to_its_floor(monkeypatch):
+    """The lamp 9 stops short, the rest of the room's gathered light noisy (3 stops, as a
+    fit's stray splats can make it) so that the albedos grow more even up to the search's
+    end, and their level not weighed: the lamp is raised to the evenness's floor and says
+    it is a lower bound. (Such noise biases the evenness up, as it biases its minimum
+    where it does not run off: ``docs/lights.md``; the floor is trusted as much.)"""
+    from gaslight_usd.fit import albedos, power
+
+    monkeypatch.setattr(albedos, "LEVEL_MEASURED_SHARE", 2.0)
+    gather = power.gather_irradiance
+    rng = np.random.default_rng(3)
+
+    def noisy_gather(*args, **kwargs):
+        irr = gather(*args, **kwargs)
+        if len(irr) > 1:  # the surface points, not the lamp's own place
+            irr[:, 0] *= 2.0 ** rng.normal(0.0, 3.0, len(irr))
+        return irr
+
+    monkeypatch.setattr(power, "gather_irradiance", noisy_gather)
+    _, _, light = _weigh(512.0)
+    floor = light.details["uniformity_at_least"]
+    assert light.details["uniformity_ran_off"] and floor is not None
+    assert light.details["uniformity_log2_factor"] == 16.0
+    assert 0.0 < floor < 16.0
+    assert light.details["inferred_log2_factor"] == pytest.approx(floor)
+    assert light.source == "inferred" and light.details["lower_bound"]
+    assert "note" not in light.details
+    assert math.log2(light.factor) == pytest.approx(floor)

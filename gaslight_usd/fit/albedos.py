@@ -212,17 +212,24 @@ def with_albedo_prior(log2_k: np.ndarray, sigma: np.ndarray, radiance: np.ndarra
     quarter of the albedos over 1 are impossible. Lights the uniformity weighed as one
     (:data:`ALIKE_TOLERANCE`) stay one. Coordinate-wise for several lights. Where the
     photos only bounded most of the points (:data:`LEVEL_MEASURED_SHARE`) the level is
-    not measured and the uniformity's estimate is returned as it is.
+    not measured and the uniformity's estimate is returned as it is, or its floor where
+    it ran off.
 
     ``at_least``: per light, where the uniformity ran off the search's top
     (:func:`evenness_floor`; NaN elsewhere): there it only says "at least this", and
-    only factors under it are penalised (with ``sigma``)."""
+    only factors under it are penalised (with ``sigma``). With no level to say how much
+    more, the floor itself is the factor, a lower bound: the search's top is no
+    estimate, and left there the light kept its fill, a lower bound stops under the
+    floor (a shaded lamp whose surroundings the photos clipped, 6.7 stops short:
+    ``docs/measurements.md``, session 43)."""
     lights = len(log2_k)
     floors = np.full(lights, np.nan) if at_least is None else np.asarray(at_least, float)
     grid = factor_grid(grid_step)
     k, spread = log2_k.astype(np.float64).copy(), sigma.astype(np.float64).copy()
     measured = int(np.isfinite(radiance).sum())
     if measured < LEVEL_MEASURED_SHARE * (measured + int(np.isfinite(bound).sum())):
+        ran_off = np.isfinite(floors)
+        k[ran_off] = floors[ran_off]
         return k, spread
     groups = ([np.arange(lights)] if lights > 1 and np.ptp(log2_k) == 0
               else [np.array([j]) for j in range(lights)])

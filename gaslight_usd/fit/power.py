@@ -487,8 +487,11 @@ def infer_light_power(scene: SplatScene, lights: list[LightPower],
                               "clipped_surface_points": int(np.isfinite(bound).sum()),
                               # the albedo cap, not the albedos' spread, decided: little
                               # light but this one's reaches the surfaces, so the factor
-                              # is the least that keeps them matte (a lower bound)
-                              "lower_bound": not feasible(lower, radiance, bound, columns)})
+                              # is the least that keeps them matte (a lower bound); or
+                              # the uniformity ran off and nothing weighed above its floor
+                              "lower_bound": (bool(best[i] == weighed.at_least[i])
+                                              or not feasible(lower, radiance, bound,
+                                                              columns))})
         if not _accepted(best[i], sigma_inf):
             light.details["note"] = ("its surfaces do not pin its power (the search ran off "
                                      "its range, or it is uncertain by over "
