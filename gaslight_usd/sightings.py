@@ -33,6 +33,7 @@ import numpy as np
 from scipy import ndimage
 
 from .cameras import PinholeCamera
+from .colour import AT_WHITE
 
 MAX_REGIONS_PER_VIEW = 48
 """Regions kept per view, the most whites (summed over the region) first: a noisy or
@@ -270,7 +271,7 @@ def without_specks(ratio: np.ndarray) -> np.ndarray:
     room: 48 regions in every view, most of them specks, and hundreds of places the
     views "agreed" on a light). A light 2 pixels across survives.
     """
-    over = ratio >= 1.0
+    over = ratio >= AT_WHITE
     kept = ndimage.binary_opening(over, structure=np.ones((2, 2), bool))
     return np.where(over & ~kept, np.minimum(ratio, np.float32(0.999)), ratio)
 

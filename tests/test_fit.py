@@ -488,10 +488,13 @@ def test_every_preset_fits_small_lights_to_keep_their_power_in_finer_cameras():
         return np.array([lamp_power(fitted, c) / lamp_power(truth, c) for c in finer])
 
     plain, default = kept(antialiased=False, fine_power=False), kept()
-    assert np.median(plain) < 0.55  # measured 0.22-0.74 a view
+    # measured 0.22-0.74 a view, medians 0.5-0.58 on two machines (their float sums
+    # differ in the last bits, and a fit amplifies that), against 0.79-0.91 antialiased
+    assert np.median(plain) < 0.65 and np.median(plain) < 0.75 * np.median(default)
     # a lamp the views measured is brightened to keep its power drawn fine (.fine_power):
     # that recovers part of what the plain dilation loses
-    assert np.median(kept(antialiased=False)) > np.median(plain) * 1.2
+    brightened = kept(antialiased=False)
+    assert np.median(brightened) > np.median(plain) * 1.1 and np.all(brightened > plain)
     # one view of nine may lose the lamp behind a splat drawn 8x finer (seeds 0-3: its
     # least view 0.21-0.46, the next 0.64-0.76; the medians 0.79-0.91)
     assert np.median(default) > 0.7 and np.sort(default)[1] > 0.6

@@ -122,3 +122,25 @@ def test_a_lamp_pushed_along_the_rays_goes_back_where_its_outlines_meet(tmp_path
     points = np.asarray(inst.GetPositionsAttr().Get(), np.float64)
     near_lamp = np.linalg.norm(points - LAMP, axis=1) < 0.1
     assert near_lamp.sum() == len(parts["lamp"])
+
+
+def test_a_light_clipped_at_the_white_is_a_region_whatever_the_float_sums_say():
+    """A photo records a clipped lamp at its white in every channel; weighed into
+    luminance in float32 that reads 0.9 on one CPU and 0.8999999 (1 ulp under) on another,
+    and a region test against the white itself lost the lamp on the second machine."""
+    from gaslight_usd.colour import AT_WHITE
+    from gaslight_usd.fit.frame_edge import light_regions
+
+    ratio = np.full((40, 40), 0.3, np.float32)
+    ratio[10:14, 20:24] = np.nextafter(np.float32(1.0), np.float32(0.0))  # 1 ulp under
+    ratio[30:33, 5:8] = np.float32(0.999)  # a surface a tenth of a code under the white
+    regions = light_regions(ratio)
+    assert len(regions.centroids) == 1
+    np.testing.assert_allclose(regions.centroids[0], [22.0, 12.0])
+    assert 0.999 < AT_WHITE < 1.0
+    # the same through a view: a lamp clipped at 0.9 in every channel
+    image = np.full((40, 40, 3), 0.2, np.float32)
+    image[10:14, 20:24] = 0.9
+    cam = aimed_camera(np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 0.6, 40)
+    found = sight_lights([cam], [image], 0.9, np.array([0.2126, 0.7152, 0.0722], np.float32))
+    assert len(found.view) == 1 and bool(found.whole[0])

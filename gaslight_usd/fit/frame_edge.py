@@ -38,6 +38,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from ..cameras import PinholeCamera
+from ..colour import AT_WHITE
 from ..resize import area_resize, fit_within
 
 ANALYSIS_SIZE = 160
@@ -110,9 +111,10 @@ class LightRegions:
 
 def light_regions(ratio: np.ndarray, edge_px: int = EDGE_PX, reach: float = REACH_PX
                   ) -> LightRegions:
-    """The 8-connected regions of ``ratio`` (luminance in whites) >= 1, each one's kind
-    and peak, and the nearest-region map."""
-    mask = ratio >= 1.0
+    """The 8-connected regions of ``ratio`` (luminance in whites) at the white or over it
+    (:data:`gaslight_usd.colour.AT_WHITE`), each one's kind and peak, and the
+    nearest-region map."""
+    mask = ratio >= AT_WHITE
     labels, count = ndimage.label(mask, structure=np.ones((3, 3), bool))
     h, w = mask.shape
     border = np.zeros(mask.shape, bool)

@@ -69,6 +69,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..cameras import PinholeCamera
 from ..capture import CaptureSpace, capture_space
+from ..colour import AT_WHITE
 from ..sightings import PeakMap, Sightings, peak_map
 from ..splats import SplatScene
 from ..surroundings import splat_sigma
@@ -176,7 +177,7 @@ def _seen_lit(points: np.ndarray, cameras: list[PinholeCamera],
                       near.shape[1] - 1)
         row = np.clip((uv[:, 1] * peaks.size[1] / cam.height / peaks.block).astype(int), 0,
                       near.shape[0] - 1)
-        lit[framed[:, v], v] = near[row, col] >= whites[v]
+        lit[framed[:, v], v] = near[row, col] >= AT_WHITE * whites[v]
     return framed, lit
 
 
