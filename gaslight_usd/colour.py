@@ -161,7 +161,7 @@ AT_WHITE = 1.0 - 1e-4
 recorded at its white reads a float32 ulp or two under it once its channels are weighed
 into luminance, by the machine's summation order (0.9 x (0.2126 + 0.7152 + 0.0722) is
 0.8999999 on one CPU and 0.9 on another), and a test against the white itself then
-found a lamp on one machine and not on the next; 1e-4 is a hundredth of an 8-bit code."""
+found a lamp on one machine and not on the next; 1e-4 is a fortieth of an 8-bit code."""
 DARK_LEVEL = 3.0 / 255.0
 """Encoded value (0-1) at or under which a photo's channel counts as crushed to black:
 an 8-bit photo's codes 0-3, where the sensor's floor, noise and JPEG's rounding leave

@@ -488,8 +488,9 @@ def test_every_preset_fits_small_lights_to_keep_their_power_in_finer_cameras():
         return np.array([lamp_power(fitted, c) / lamp_power(truth, c) for c in finer])
 
     plain, default = kept(antialiased=False, fine_power=False), kept()
-    # measured 0.22-0.74 a view, medians 0.5-0.58 on two machines (their float sums
-    # differ in the last bits, and a fit amplifies that), against 0.79-0.91 antialiased
+    # measured 0.22-0.74 a view; the median under 0.55 on one machine, 0.58 on another
+    # (their float sums differ in the last bits, and a fit amplifies that), against
+    # 0.79-0.91 antialiased
     assert np.median(plain) < 0.65 and np.median(plain) < 0.75 * np.median(default)
     # a lamp the views measured is brightened to keep its power drawn fine (.fine_power):
     # that recovers part of what the plain dilation loses

@@ -133,7 +133,7 @@ def test_a_light_clipped_at_the_white_is_a_region_whatever_the_float_sums_say():
 
     ratio = np.full((40, 40), 0.3, np.float32)
     ratio[10:14, 20:24] = np.nextafter(np.float32(1.0), np.float32(0.0))  # 1 ulp under
-    ratio[30:33, 5:8] = np.float32(0.999)  # a surface a tenth of a code under the white
+    ratio[30:33, 5:8] = np.float32(0.999)  # a surface a quarter of an 8-bit code under the white
     regions = light_regions(ratio)
     assert len(regions.centroids) == 1
     np.testing.assert_allclose(regions.centroids[0], [22.0, 12.0])
