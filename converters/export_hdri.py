@@ -16,6 +16,7 @@ from gaslight_usd.kinds import Kind
 from gaslight_usd.lights import find_lights
 from gaslight_usd.ply import read_ply
 from gaslight_usd.probe_check import (
+    inside_warning,
     near_light_warning,
     outside_warning,
     unseen_angles,
@@ -65,7 +66,8 @@ def export_hdri_stage(ctx: StageContext) -> StageResult:
     sightings = Sightings.from_metadata(scene.metadata)
     for pos in points:
         found = [outside_warning(pos, scene.positions) if o.at else None,
-                 near_light_warning(pos, lights), unseen_light_warning(pos, lights, sightings)]
+                 near_light_warning(pos, lights), inside_warning(pos, scene),
+                 unseen_light_warning(pos, lights, sightings)]
         for warning in filter(None, found):
             warnings.append(warning)
             ctx.progress.message(f"warning: {warning}")

@@ -376,7 +376,8 @@ def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
     tiny = preset("fast").updated(iterations=6, budget=800, init_points=600,
                                   backdrop_tiles=0, working_size=60, infer_power=False)
     monkeypatch.setattr(suite_chain, "preset", lambda name: tiny)
-    scene, _, _, metrics = suite_chain.fitted_scene(example, "recursive", tmp_path, "fast", 0)
+    scene, _, scale, metrics = suite_chain.fitted_scene(example, "recursive", tmp_path, "fast",
+                                                        0)
     fill = metrics["uplift_fill"]
     assert fill["fill_views_lamp"] >= 3 and fill["fill_err_lamp"] < -3.0
     assert fill["fill_views_window"] >= 3 and abs(fill["fill_err_window"]) < 1.5
@@ -385,6 +386,12 @@ def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
     from gaslight_usd.lights import power_source
     assert power_source(scene.metadata) == "predicted"
     assert scene.metadata["fit_metrics"]["clipped_lights"] == metrics["clipped_lights"]
+    # each probe's row says how much the splats lay on the probe point itself
+    from gaslight_usd.probe_check import inside_alpha
+    probes = json.loads((example / "probes" / "probes.json").read_text())["probes"]
+    rows = suite_chain.probe_rows(scene, example, scale, relight=False)
+    assert [row["inside_alpha"] for row in rows] == [
+        inside_alpha(p["position"], scene) for p in probes]
 
 
 def test_chain_scores_a_sunlit_patch_like_a_light():

@@ -362,6 +362,58 @@ def test_a_probe_within_a_lights_reach_is_warned_about(tmp_path, capsys):
     assert "warning" not in capsys.readouterr().err
 
 
+def test_the_opacity_splats_lay_on_a_point_follows_their_shape():
+    """One splat: its opacity at its centre, times exp(-1/2) one sigma out along its long
+    axis (turned by its rotation), nothing past three sigmas; two multiply as layers."""
+    from gaslight_usd.probe_check import inside_alpha
+
+    turn = [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]  # 90 degrees about z: x -> y
+    one = SplatScene.from_activated(np.zeros((1, 3)), np.ones((1, 3)),
+                                    np.array([[0.3, 0.02, 0.02]]), np.array([0.6]),
+                                    rotations=np.array([turn]))
+    assert inside_alpha([0.0, 0.0, 0.0], one) == pytest.approx(0.6)
+    assert inside_alpha([0.0, 0.3, 0.0], one) == pytest.approx(0.6 * np.exp(-0.5))
+    assert inside_alpha([0.3, 0.0, 0.0], one) == 0.0  # 15 of its sigmas across
+    assert inside_alpha([0.0, 0.95, 0.0], one) == 0.0
+    two = SplatScene.from_activated(np.zeros((2, 3)), np.ones((2, 3)),
+                                    np.full((2, 3), 0.1), np.array([0.6, 0.5]))
+    assert inside_alpha([0.0, 0.0, 0.0], two) == pytest.approx(1.0 - 0.4 * 0.5)
+
+
+def test_a_probe_among_splats_floating_in_the_room_is_warned_about(tmp_path, capsys):
+    """Window-bright splats left floating 0.5 m in front of the window (as a fit from the
+    shaded-lamp room's true HDR views leaves them, issue 16): a probe among them is warned
+    about, by the stage as well; the room's middle, among no splats, is not."""
+    from gaslight_usd.cli.main import main
+    from gaslight_usd.ply import write_ply
+    from gaslight_usd.probe_check import INSIDE_ALPHA, inside_alpha, inside_warning
+
+    scene, _ = room_scene()
+    among = WINDOW - np.array([0.5, 0.0, 0.0])
+    fog = among + np.array([[0.03, -0.04, 0.05], [-0.06, 0.02, -0.01], [0.0, 0.06, 0.03]])
+    floating = SplatScene.from_activated(fog, np.full((3, 3), 12.0), np.full((3, 3), 0.07),
+                                         np.full(3, 0.4))
+    joined = SplatScene.from_activated(
+        np.concatenate([scene.positions, floating.positions]),
+        np.concatenate([scene.base_colours, floating.base_colours]),
+        np.concatenate([scene.scales, floating.scales]),
+        np.concatenate([scene.opacities, floating.opacities]),
+        metadata=scene.metadata)
+    assert inside_alpha(among, joined) > 0.5
+    assert inside_alpha(among, scene) < INSIDE_ALPHA
+    text = inside_warning(among, joined)
+    assert text is not None and text.startswith("probe point 1.99,1.6,0.2 lies inside the "
+                                                 "fit's splats (they lay opacity 0.")
+    assert inside_warning(among, scene) is None
+    assert inside_warning([0.0, 1.5, 0.0], joined) is None
+    ply = write_ply(tmp_path / "fog.ply", joined)
+    assert main(["hdri", str(ply), "--at", "1.99,1.6,0.2", "-o", str(tmp_path / "f.exr"),
+                 "--size", "16", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "warning: probe point 1.99,1.6,0.2 lies inside the fit's splats" in captured.err
+    assert text in json.loads(captured.out)["warnings"]
+
+
 def test_a_probe_that_sees_a_light_from_where_no_photo_did_is_warned_about(tmp_path, capsys):
     """Half the ring of cameras saw the lamp (light regions holding it); a probe on their
     side is fine, one beyond the lamp from all of them is warned about, with the angle

@@ -43,6 +43,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``unseen_deg_<light>`` -- how far the probe sees each true light from every photo that
   saw it (degrees at the light, from the fit's light sightings: what ``hdri`` warns
   about, :mod:`gaslight_usd.probe_check`);
+* ``inside_alpha`` -- the opacity the fit's splats lay on the probe point itself: a probe
+  among splats floating in the room sees them from inside (what ``hdri`` warns about
+  over :data:`gaslight_usd.probe_check.INSIDE_ALPHA`);
 * ``light_dist_<light>``, ``lights_found``, ``stray_light_share`` -- where the lights
   the export would write are (:func:`light_placement`), the same on each probe's row;
   ``light_spread_<light>``, ``floating_share`` -- where their splats are
@@ -88,7 +91,7 @@ from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
 from ..fit import fit_splats, load_fit_data, preset
 from ..imageio import read_image
 from ..locate import example_room, find_data
-from ..probe_check import unseen_angles
+from ..probe_check import inside_alpha, unseen_angles
 from ..render.envmap import render_latlong
 from ..sightings import Sightings
 from ..splats import SplatScene
@@ -540,7 +543,8 @@ def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
                                "pu21_psnr_peak": pu21_psnr_peak(pano, truth),
                                **light_errors,
                                **power_errors(pano, truth, lit_regions(info), pos),
-                               **unseen_columns(scene, lights, pos)}
+                               **unseen_columns(scene, lights, pos),
+                               "inside_alpha": inside_alpha(pos, scene)}
         errs = [abs(v) for v in light_errors.values()]
         row["power_err_stops_max"] = max(errs) if errs else float("nan")
         if relight:
