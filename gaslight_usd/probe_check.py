@@ -50,7 +50,7 @@ true HDR views the chain bench's shaded-lamp room leaves two or three window-bri
 splats floating 0.5 m in front of its window, round its probe there, in every seed
 (0.30-0.37): that probe's irradiance is 3.2 stops over the truth outside the lights'
 cones. Every other probe of its six rooms lies under 0.05 from true HDR views, and from
-the photos all but the probes by the window of four fits in 18 (0.11-0.51)
+the photos every probe but the one by the window in four fits of 18 (0.11-0.51) under 0.1
 (``gaslight2usd bench --suite chain``, its ``inside_alpha`` column; figures in
 docs/measurements.md, session 44)."""
 INSIDE_SIGMAS = 3.0
