@@ -45,14 +45,11 @@ further out and the bundled example's (all well outside it) are not (``gaslight2
 
 
 INSIDE_ALPHA = 0.1
-"""A probe on which the fit's splats lay this much opacity or more is warned about. From
-true HDR views the chain bench's shaded-lamp room leaves two or three window-bright
-splats floating 0.5 m in front of its window, round its probe there, in every seed
-(0.30-0.37): that probe's irradiance is 3.2 stops over the truth outside the lights'
-cones. Every other probe of its six rooms lies under 0.05 from true HDR views, and from
-the photos every probe but the one by the window in four fits of 18 (0.11-0.51) under 0.1
-(``gaslight2usd bench --suite chain``, its ``inside_alpha`` column; figures in
-docs/measurements.md, session 44)."""
+"""A probe on which the fit's splats lay this much opacity or more is warned about: a
+fit from true HDR views of the chain bench's shaded-lamp room leaves window-bright splats
+floating round its probe by the window, stops too bright, where the probes of its other
+rooms lie among none (``gaslight2usd bench --suite chain``, its ``inside_alpha`` column;
+figures in docs/measurements.md, session 44)."""
 INSIDE_SIGMAS = 3.0
 """Splats farther than this many of their sigmas from the point lay nothing on it."""
 

@@ -66,7 +66,7 @@ def test_a_probe_far_outside_the_splats_is_warned_about(probes, tmp_path, capsys
     assert "probe point 0,1.5,135 lies 13" in captured.err
     assert "sees the set from outside" in captured.err
     assert json.loads(captured.out)["warnings"][0].startswith("probe point 0,1.5,135")
-    # inside the room, clear of the walls' splats (0.3 m across here): no warning
+    # inside the room, clear of the walls' splats (their sigma is 0.3 m here): no warning
     assert main(["hdri", str(ply), "--at", "0.5,1,-1", "-o", str(tmp_path / "in.exr"),
                  "--size", "16"]) == 0
     assert "warning" not in capsys.readouterr().err
