@@ -386,6 +386,8 @@ def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
     from gaslight_usd.lights import power_source
     assert power_source(scene.metadata) == "predicted"
     assert scene.metadata["fit_metrics"]["clipped_lights"] == metrics["clipped_lights"]
+    # what the fit seeded on the views' empty clipped patches is reported (fit.holes)
+    assert {"splats", "empty_pixels"} <= set(metrics["holes_filled"])
     # each probe's row says how much the splats lay on the probe point itself
     from gaslight_usd.probe_check import inside_alpha
     probes = json.loads((example / "probes" / "probes.json").read_text())["probes"]

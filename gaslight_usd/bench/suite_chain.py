@@ -56,6 +56,8 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
   raised (:func:`weighing_summary`);
 * ``one_photo_lights`` -- sunk compact lights the fit moved back along the one photo
   that frames them and kept as lights there (:mod:`gaslight_usd.fit.sunk_lights`);
+* ``holes_filled`` -- splats the fit seeded on the views' compact clipped patches that
+  nothing covered at the end of its densify window (:mod:`gaslight_usd.fit.holes`);
 * ``planes_held``, ``floaters_on_planes``, ``wall_offset_m`` -- how many planes the fit
   held its splats on (:mod:`gaslight_usd.fit.planes`), how many bright floaters it
   brought back onto a lit patch of one (a window's), and how far its opaque splats near
@@ -590,6 +592,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                                               scene_lights(info))
                 placement["one_photo_lights"] = int(
                     (metrics.get("surfaced_lights") or {}).get("placed_lights", 0))
+                placement["holes_filled"] = int(
+                    (metrics.get("holes_filled") or {}).get("splats", 0))
                 planes = metrics.get("planes") or {}
                 placement["planes_held"] = len(planes.get("planes", []))
                 placement["floaters_on_planes"] = int(planes.get("floaters_on_planes", 0))

@@ -116,6 +116,16 @@ class SplatModel:
     def prune(self, remove: torch.Tensor) -> None:
         self._replace(~remove, None)
 
+    def add(self, positions: np.ndarray, colours: np.ndarray, scales: np.ndarray,
+            opacity: float) -> None:
+        """Append isotropic splats (as :meth:`initial` makes them), fresh Adam moments."""
+        if not len(positions):
+            return
+        device = self.t["means"].device
+        new = SplatModel.initial(positions, colours, scales, opacity, self.lrs, device)
+        keep = torch.ones(self.count, dtype=torch.bool, device=device)
+        self._replace(keep, {k: v.detach() for k, v in new.t.items()})
+
     def densify(self, clone: torch.Tensor, split: torch.Tensor, generator: torch.Generator
                 ) -> None:
         """3DGS densification: copy small splats, split big ones into two smaller."""

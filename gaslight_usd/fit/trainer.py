@@ -51,6 +51,7 @@ from .data import FitData
 from .exposure_check import exposure_outliers
 from .fine_power import FinePower, fine_power_factor, with_fine_power
 from .frame_edge import CutLight, cut_lights, white_ratios
+from .holes import fill_holes
 from .init import initial_points, neighbour_scales
 from .light_seeds import (
     MEASURED_LIGHT_RATIO,
@@ -82,6 +83,9 @@ from .triangulate import triangulate_views
 
 MIN_CONTRIBUTION = 0.02
 """Pixel-equivalents of blend weight (x relative brightness) under which a splat is pruned."""
+HOLES_SHARE = 0.1
+"""At most this share of the budget goes to the views' empty patches (:mod:`.holes`); a
+fit at its budget makes room by pruning the splats that contribute least."""
 
 
 @dataclass
@@ -192,6 +196,8 @@ class Trainer:
         self.elapsed = 0.0
         self.floaters_moved = 0
         """Light splats :meth:`_surface_floaters` moved (reported with the fit's metrics)."""
+        self.holes_filled: dict[str, Any] = {"splats": 0, "empty_pixels": {}}
+        """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
         self._reset_stats()
 
     def _init_model(self):
@@ -237,6 +243,7 @@ class Trainer:
                 "grad_sum": self.grad_sum, "grad_count": self.grad_count,
                 "history": self.history, "elapsed": self.elapsed,
                 "floaters_moved": self.floaters_moved,
+                "holes_filled": self.holes_filled,
                 "room_planes": [asdict(plane) for plane in self.room_planes],
                 "poses": self.refiner.state_dict() if self.refiner else None,
                 "planes": self.planes.state_dict() if self.planes else None}
@@ -256,6 +263,7 @@ class Trainer:
         self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
         self.floaters_moved = int(state.get("floaters_moved", 0))
+        self.holes_filled = state.get("holes_filled", {"splats": 0, "empty_pixels": {}})
         self.room_planes = [Plane(**plane) for plane in state.get("room_planes", [])]
         self.planes = (PlanePrior.from_state(state["planes"], self.device)
                        if state.get("planes") is not None else None)
@@ -407,6 +415,8 @@ class Trainer:
                 self._densify_and_prune()
             if self.step == self._floaters_step():
                 self._surface_floaters()
+            if self.step == self._holes_step():
+                self._fill_holes()
             self.progress.update(self.step, self.cfg.iterations, loss=loss,
                                  splats=self.model.count)
             if self.checkpoint is not None and self.step % self.cfg.checkpoint_every == 0:
@@ -620,6 +630,60 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used))
         return with_fine_power(scene, lights), lights
 
+    def _holes_step(self) -> int:
+        """The step at which the views' empty patches get splats (:meth:`_fill_holes`): the
+        end of the densify window, when densification has covered what it can."""
+        return self._floaters_step()
+
+    def _fill_holes(self) -> None:
+        """Splats on the training views' patches that no splat covers (:mod:`.holes`):
+        densification never reaches them."""
+        degree = self.active_degree()
+        cams = [self.data.cameras[i] for i in self.train]
+        with torch.no_grad():
+            alphas = [render(self.model.params(degree), cam, background=0.0,
+                             sh_degree=degree).alpha.cpu().numpy() for cam in cams]
+        scene = self.model.to_scene(degree, {})
+        holes = fill_holes(scene, cams, alphas, [self.data.images[i] for i in self.train],
+                           [self.data.names[i] for i in self.train],
+                           self.y_weights.cpu().numpy(), self.mean_level,
+                           np.random.default_rng([self.seed, 13]),
+                           [np.zeros(self.data.images[i].shape[:2], bool)
+                            if self.data.floor(i) is None else self.data.floor(i) > 0
+                            for i in self.train],
+                           white=self._plane_white or 0.0, planes=self.room_planes)
+        cap = self.cfg.budget - self._backdrop_reserve()
+        take = min(holes.count, int(HOLES_SHARE * cap))
+        freed = self._make_room(take - (cap - self.model.count))
+        self.holes_filled = {"splats": take, "freed": freed,
+                             "empty_pixels": holes.empty_pixels}
+        if not take:
+            return
+        pick = np.sort(np.random.default_rng([self.seed, 14]).choice(holes.count, take,
+                                                                      replace=False))
+        self.model.add(holes.positions[pick], holes.colours[pick], holes.sizes[pick],
+                       self.cfg.init_opacity)
+        if self.planes is not None:  # new splats, new indices
+            self._assign_planes()
+        self._reset_stats()
+        self.progress.message(f"step {self.step}: {take} splats on the views' empty patches")
+
+    def _make_room(self, count: int) -> int:
+        """Prune the ``count`` splats that contribute least to the training views (as
+        :meth:`_prune_idle` scores them); returns how many went."""
+        if count <= 0:
+            return 0
+        degree = self.active_degree()
+        cams = self.cameras()
+        weight, radiance = contributions(self.model.params(degree),
+                                         [cams[i] for i in self.train], degree)
+        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
+                                     min=1.0)
+        drop = torch.zeros(self.model.count, dtype=torch.bool, device=score.device)
+        drop[torch.argsort(score)[:count]] = True
+        self.model.prune(drop)
+        return int(count)
+
     def _floaters_step(self) -> int:
         """The step after which the lights drawn just in front of a camera are moved onto
         the room's surfaces (:meth:`_surface_floaters`): the end of the densify window."""
@@ -782,6 +846,7 @@ class Trainer:
             "surfaced_lights": {**surfaced.as_dict(), "floaters_moved_midway":
                                 self.floaters_moved},
             "broad_lights_on_walls": on_walls.as_dict(),
+            "holes_filled": self.holes_filled,
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
             "exposure_outliers": exposure_outliers(
