@@ -197,6 +197,12 @@ def test_the_fit_seeds_a_one_photo_panel_at_the_end_of_its_densify_window():
     trainer.model = SplatModel({k: torch.as_tensor(np.asarray(v, np.float32))
                                 for k, v in tensors.items()}, dict.fromkeys(tensors, 1e-3))
     trainer.room_planes = [_ceiling_plane(2.95)]
+    # nothing over the white to seed: a fit over its budget is left as it is
+    trainer._plane_white = 20.0
+    trainer.cfg = trainer.cfg.updated(budget=scene.count // 2)
+    trainer._fill_holes()
+    assert trainer.holes_filled["splats"] == 0 and trainer.model.count == scene.count
+    trainer.cfg = trainer.cfg.updated(budget=4 * scene.count)
     trainer._plane_white = 1.0
     trainer._fill_holes()
     added = trainer.holes_filled["splats"]

@@ -654,11 +654,10 @@ class Trainer:
                            white=self._plane_white or 0.0, planes=self.room_planes)
         cap = self.cfg.budget - self._backdrop_reserve()
         take = min(holes.count, int(HOLES_SHARE * cap))
-        freed = self._make_room(take - (cap - self.model.count))
-        self.holes_filled = {"splats": take, "freed": freed,
-                             "empty_pixels": holes.empty_pixels}
+        self.holes_filled = {"splats": take, "freed": 0, "empty_pixels": holes.empty_pixels}
         if not take:
             return
+        self.holes_filled["freed"] = self._make_room(take - max(cap - self.model.count, 0))
         pick = np.sort(np.random.default_rng([self.seed, 14]).choice(holes.count, take,
                                                                       replace=False))
         self.model.add(holes.positions[pick], holes.colours[pick], holes.sizes[pick],
