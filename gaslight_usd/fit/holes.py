@@ -71,7 +71,8 @@ there."""
 @dataclass
 class Holes:
     """The splats to add: positions ``(n, 3)``, colours ``(n, 3)`` and sizes ``(n,)``, and
-    per view how many pixels were empty."""
+    per view how many pixels its compact, bright, empty patches hold (before the depth
+    and the other views have their say)."""
 
     positions: np.ndarray
     colours: np.ndarray
