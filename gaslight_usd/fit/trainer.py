@@ -343,16 +343,20 @@ class Trainer:
         """Splats of the budget kept for the backdrop (a share of its tiles is unseen)."""
         return min(self.cfg.backdrop_tiles // 2, self.cfg.budget // 10)
 
-    def _prune_idle(self) -> int:
-        """Prune splats that contribute next to nothing to the training views, their
-        radiance measured against those views' mean level (:attr:`mean_level`)."""
+    def _contribution_scores(self) -> torch.Tensor:
+        """(N,) what each splat contributes to the training views: its blend weight, times
+        its radiance over those views' mean level (:attr:`mean_level`) where brighter."""
         degree = self.active_degree()
         cams = self.cameras()
         weight, radiance = contributions(self.model.params(degree),
                                          [cams[i] for i in self.train], degree)
-        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
-                                     min=1.0)
-        idle = score < MIN_CONTRIBUTION
+        return weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
+                                    min=1.0)
+
+    def _prune_idle(self) -> int:
+        """Prune splats that contribute next to nothing to the training views
+        (:meth:`_contribution_scores`)."""
+        idle = self._contribution_scores() < MIN_CONTRIBUTION
         self.model.prune(idle)
         if self.planes is not None:
             self._assign_planes()
@@ -668,16 +672,11 @@ class Trainer:
         self.progress.message(f"step {self.step}: {take} splats on the views' empty patches")
 
     def _make_room(self, count: int) -> int:
-        """Prune the ``count`` splats that contribute least to the training views (as
-        :meth:`_prune_idle` scores them); returns how many went."""
+        """Prune the ``count`` splats that contribute least to the training views
+        (:meth:`_contribution_scores`); returns how many went."""
         if count <= 0:
             return 0
-        degree = self.active_degree()
-        cams = self.cameras()
-        weight, radiance = contributions(self.model.params(degree),
-                                         [cams[i] for i in self.train], degree)
-        score = weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
-                                     min=1.0)
+        score = self._contribution_scores()
         drop = torch.zeros(self.model.count, dtype=torch.bool, device=score.device)
         drop[torch.argsort(score)[:count]] = True
         self.model.prune(drop)
