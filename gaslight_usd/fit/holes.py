@@ -161,7 +161,7 @@ def fill_holes(scene: SplatScene, cameras: list[PinholeCamera], alphas: list[np.
     splat lies beyond."""
     positions, colours, sizes, counts = [], [], [], {}
     masks = masks or [None] * len(cameras)
-    depths = [depth_map(scene, cam) for cam in cameras]
+    depths: list[np.ndarray] = []  # every view's, drawn once a view has a patch to seed
     for own, (cam, alpha, target, name, mask) in enumerate(zip(cameras, alphas, targets,
                                                                names, masks, strict=True)):
         lum = target @ weights
@@ -171,6 +171,7 @@ def fill_holes(scene: SplatScene, cameras: list[PinholeCamera], alphas: list[np.
         empty = bright_patches(compact_patches(empty, cam.fx), lum, white)
         if int(empty.sum()) < MIN_PIXELS:
             continue
+        depths = depths or [depth_map(scene, view) for view in cameras]
         depth = depths[own]
         covered = (alpha >= COVERED_ALPHA) & np.isfinite(depth)
         if int(covered.sum()) < NEIGHBOURS:

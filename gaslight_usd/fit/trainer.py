@@ -642,6 +642,11 @@ class Trainer:
     def _fill_holes(self) -> None:
         """Splats on the training views' patches that no splat covers (:mod:`.holes`):
         densification never reaches them."""
+        clipped = [np.zeros(self.data.images[i].shape[:2], bool)
+                   if self.data.floor(i) is None else self.data.floor(i) > 0
+                   for i in self.train]
+        if not any(mask.any() for mask in clipped):
+            return  # nothing clipped (true HDR, merged brackets): no patch to seed
         degree = self.active_degree()
         cams = [self.data.cameras[i] for i in self.train]
         with torch.no_grad():
@@ -651,10 +656,7 @@ class Trainer:
         holes = fill_holes(scene, cams, alphas, [self.data.images[i] for i in self.train],
                            [self.data.names[i] for i in self.train],
                            self.y_weights.cpu().numpy(), self.mean_level,
-                           np.random.default_rng([self.seed, 13]),
-                           [np.zeros(self.data.images[i].shape[:2], bool)
-                            if self.data.floor(i) is None else self.data.floor(i) > 0
-                            for i in self.train],
+                           np.random.default_rng([self.seed, 13]), clipped,
                            white=self._plane_white or 0.0, planes=self.room_planes)
         cap = self.cfg.budget - self._backdrop_reserve()
         take = min(holes.count, int(HOLES_SHARE * cap))
