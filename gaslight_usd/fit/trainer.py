@@ -196,7 +196,7 @@ class Trainer:
         self.elapsed = 0.0
         self.floaters_moved = 0
         """Light splats :meth:`_surface_floaters` moved (reported with the fit's metrics)."""
-        self.holes_filled: dict[str, Any] = {"splats": 0, "empty_pixels": {}}
+        self.holes_filled: dict[str, Any] = {"splats": 0, "freed": 0, "empty_pixels": {}}
         """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
         self._reset_stats()
 
@@ -263,7 +263,7 @@ class Trainer:
         self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
         self.floaters_moved = int(state.get("floaters_moved", 0))
-        self.holes_filled = state.get("holes_filled", {"splats": 0, "empty_pixels": {}})
+        self.holes_filled = state.get("holes_filled", {"splats": 0, "freed": 0, "empty_pixels": {}})
         self.room_planes = [Plane(**plane) for plane in state.get("room_planes", [])]
         self.planes = (PlanePrior.from_state(state["planes"], self.device)
                        if state.get("planes") is not None else None)
@@ -419,8 +419,7 @@ class Trainer:
                 self._densify_and_prune()
             if self.step == self._floaters_step():
                 self._surface_floaters()
-            if self.step == self._holes_step():
-                self._fill_holes()
+                self._fill_holes()  # densification has covered what it can by now
             self.progress.update(self.step, self.cfg.iterations, loss=loss,
                                  splats=self.model.count)
             if self.checkpoint is not None and self.step % self.cfg.checkpoint_every == 0:
@@ -634,14 +633,10 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used))
         return with_fine_power(scene, lights), lights
 
-    def _holes_step(self) -> int:
-        """The step at which the views' empty patches get splats (:meth:`_fill_holes`): the
-        end of the densify window, when densification has covered what it can."""
-        return self._floaters_step()
-
     def _fill_holes(self) -> None:
         """Splats on the training views' patches that no splat covers (:mod:`.holes`):
-        densification never reaches them."""
+        densification never reaches them. Run once, at the end of the densify window
+        (:meth:`_floaters_step`)."""
         clipped = [np.zeros(self.data.images[i].shape[:2], bool)
                    if self.data.floor(i) is None else self.data.floor(i) > 0
                    for i in self.train]
