@@ -33,10 +33,12 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    not short) does not explain a window as bright as a tenth of it. A source the
    fit weighed by the surfaces it lights (its ``fit_metrics.clipped_lights``) is no
    lower bound: its power is known to the weighing's uncertainty, and it counts only
-   ``2 **`` that much brighter (:func:`weighed_gain`). At the headroom, a bare bulb
-   weighed 10-11 stops over its fill explained the window of its room away, and the
-   rig written from the photos had no window (``gaslight2usd bench --suite chain``,
-   ``light_dist_window``; ``docs/measurements.md``, session 36).
+   ``2 **`` that much brighter (:func:`weighed_gain`, which covers the splats within
+   :data:`WEIGHED_REACH` of its radius); nor is one a view measured over the white (a
+   darker frame aimed at it: the fit's ``measured`` entries). At the headroom, a bare
+   bulb weighed 10-11 stops over its fill explained the window of its room away, and
+   the rig written from the photos had no window (``gaslight2usd bench --suite chain``,
+   ``light_dist_window``; ``docs/measurements.md``, sessions 36 and 46).
    A cluster within :data:`OUTLINE_REACH` sizes of a light the photos' outlines
    placed clipped in every view that frames it (the fit's ``light_seeds``,
    :mod:`gaslight_usd.fit.light_seeds`) is an emitter without this test: a bare bulb
@@ -175,6 +177,11 @@ under half the white (none of its power)."""
 OUTLINE_REACH = 2.0
 """A cluster whose centre lies within this many of an outlined light's sizes is that
 light (step 3)."""
+WEIGHED_REACH = 3.0
+"""A weighed or measured light's splats lie within this many of its radius (an RMS
+spread) of its centre: within 1x, a third of a bare bulb's 43 splats, and the rest
+counted up to the headroom, 8 times the weighed power, explaining its room's window away
+(``gaslight2usd bench --suite chain --scene bulb:7``, docs/measurements.md, session 46)."""
 GROUP_SHARE = 0.15
 """Emitter clusters closer than this share of the captured space's median depth (plus
 their own sizes) are one light (a window fitted as many patches)."""
@@ -513,15 +520,16 @@ def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.
 
 
 def _weighed_lights(metadata: Mapping[str, Any]) -> list[tuple[np.ndarray, float, Mapping]]:
-    """``(position, radius, entry)`` of each light the fit weighed by the surfaces it
-    lights (its ``fit_metrics.clipped_lights`` whose power was ``inferred`` or ``fused``,
-    :mod:`gaslight_usd.fit.power`); malformed entries are skipped."""
+    """``(position, radius, entry)`` of each light whose power the fit knows: weighed by
+    the surfaces it lights (its ``fit_metrics.clipped_lights`` whose power was
+    ``inferred`` or ``fused``, :mod:`gaslight_usd.fit.power`) or ``measured`` over the
+    white by a view; malformed entries are skipped."""
     fit = metadata.get("fit_metrics")
     weighed = fit.get("clipped_lights") if isinstance(fit, Mapping) else None
     out = []
     for entry in weighed or []:
         if not isinstance(entry, Mapping) or entry.get("power_source") not in (
-                "inferred", "fused"):
+                "inferred", "fused", "measured"):
             continue
         try:
             where = np.asarray(entry["position"], np.float64).reshape(3)
@@ -535,25 +543,27 @@ def _weighed_lights(metadata: Mapping[str, Any]) -> list[tuple[np.ndarray, float
 
 def weighed_gain(positions: np.ndarray, metadata: Mapping[str, Any]) -> np.ndarray:
     """(N,) how much brighter each splat of a light the fit weighed may be
-    (:func:`_weighed_lights`): ``2 **`` the weighing's uncertainty (stops) within that
-    light's radius; NaN elsewhere (:func:`clipped_gain` holds there)."""
+    (:func:`_weighed_lights`): ``2 **`` the weighing's uncertainty (stops) within
+    :data:`WEIGHED_REACH` of that light's radius; NaN elsewhere (:func:`clipped_gain`
+    holds there)."""
     out = np.full(len(positions), np.nan)
     pos = np.asarray(positions, np.float64)
     for where, reach, entry in _weighed_lights(metadata):
-        near = np.linalg.norm(pos - where, axis=1) <= reach
+        near = np.linalg.norm(pos - where, axis=1) <= WEIGHED_REACH * reach
         out[near] = np.fmax(out[near], 2.0 ** float(entry["power_uncertainty_stops"]))
     return out
 
 
 def _weighed_by_the_fit(light: Light, metadata: Mapping[str, Any]) -> None:
-    """Where the fit weighed this light by the surfaces it lights (:func:`_weighed_lights`),
-    the light's power came from there: its splats already carry the factor, and the
-    fit's uncertainty replaces the uplift's."""
+    """Where the fit weighed this light by the surfaces it lights, or a view measured it
+    (:func:`_weighed_lights`), the light's power came from there: its splats already
+    carry the factor, and the fit's uncertainty replaces the uplift's."""
     for where, reach, entry in _weighed_lights(metadata):
         if np.linalg.norm(where - light.position) <= max(reach + light.radius, 1e-6):
             light.power_source = str(entry["power_source"])
             light.power_uncertainty_stops = round(float(entry["power_uncertainty_stops"]), 3)
-            light.test["inferred_factor"] = float(entry.get("factor", 1.0))
+            if entry["power_source"] != "measured":
+                light.test["inferred_factor"] = float(entry.get("factor", 1.0))
             return
 
 
