@@ -179,9 +179,10 @@ OUTLINE_REACH = 2.0
 light (step 3)."""
 WEIGHED_REACH = 3.0
 """A weighed or measured light's splats lie within this many of its radius (an RMS
-spread) of its centre: within 1x, a third of a bare bulb's 43 splats, and the rest
-counted up to the headroom, 8 times the weighed power, explaining its room's window away
-(``gaslight2usd bench --suite chain --scene bulb:7``, docs/measurements.md, session 46)."""
+spread) of its centre. Within one radius, most of a bare bulb's bright splats fell
+outside, counted up to the clipped headroom instead of the weighing's uncertainty, and
+explained its room's window away (``gaslight2usd bench --suite chain --scene bulb:7``,
+``light_dist_window``; figures in docs/measurements.md, session 46)."""
 GROUP_SHARE = 0.15
 """Emitter clusters closer than this share of the captured space's median depth (plus
 their own sizes) are one light (a window fitted as many patches)."""
