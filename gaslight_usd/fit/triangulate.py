@@ -22,6 +22,13 @@ from ..imageio import read_image
 from ..poses.colmap import ColmapModel
 from ..progress import Progress
 
+DESPECKLE = 3
+"""Side (pixels) of the median filter the tone-mapped views pass before SIFT. A room lit
+indirectly (a shaded lamp) and path traced, or shot at high ISO, is speckled at every
+pixel, and SIFT finds its features in the speckle, which no other view shares: the fit
+then starts from a handful of points and draws the walls off their places (``gaslight2usd
+bench --suite chain --scene shade``, ``docs/measurements.md``). In a clean view a 3 x 3
+median moves little but the finest texture."""
 MID_GREY = 0.18
 """Where the median luminance of all views lands after the shared exposure."""
 
@@ -31,6 +38,13 @@ def tone_map_8bit(image: np.ndarray, scale: float) -> np.ndarray:
     x = np.clip(np.asarray(image, np.float32) * scale, 0.0, 1.0)
     v = srgb_encode(x)
     return np.round(v * 255.0).astype(np.uint8)
+
+
+def despeckle(image: np.ndarray, size: int = DESPECKLE) -> np.ndarray:
+    """(H, W, 3) ``image`` through a ``size`` x ``size`` median filter per channel."""
+    from scipy.ndimage import median_filter
+
+    return median_filter(image, size=(size, size, 1)) if size > 1 else image
 
 
 def shared_scale(images: list[np.ndarray], y_weights: np.ndarray | None = None) -> float:
@@ -82,7 +96,7 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
         for name, image in images.items():
             target = work / name
             target.parent.mkdir(parents=True, exist_ok=True)
-            buf = oiio.ImageBuf(np.ascontiguousarray(tone_map_8bit(image, scale)))
+            buf = oiio.ImageBuf(np.ascontiguousarray(despeckle(tone_map_8bit(image, scale))))
             if not buf.write(str(target)):
                 progress.message(f"cannot write a tone-mapped view as {name!r}; "
                                  "no triangulation")

@@ -84,6 +84,10 @@ class SfmOptions:
     SIFT are most of the SfM's time. Threaded extraction writes the photos' features in
     the order they finish, which can reorder the matching after it: set 1 (with
     ``threads=1``) where the result must repeat exactly."""
+    guided_matching: bool = True
+    """With the poses known (:func:`triangulate_known_poses`), also match features near
+    their epipolar lines (:mod:`gaslight_usd.poses.guided`): smooth walls keep points
+    the plain ratio test loses."""
     verbose: bool = False
 
 
@@ -489,6 +493,8 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
             try:
                 db_ids = {im.name: (im.image_id, im.camera_id) for im in db.read_all_images()}
                 agreement = _match_agreement(db, model, db_ids)
+                if opts.guided_matching:
+                    _guide(db, model, db_ids, progress)
             finally:
                 db.close()
             intr = {}
@@ -509,6 +515,9 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
                                               options=pycolmap.IncrementalPipelineOptions(
                                                   num_threads=opts.threads,
                                                   random_seed=opts.seed))
+            if opts.guided_matching:
+                _drop_short_tracks(rec)
+                rec.write(str(out))  # the binary files triangulate_points wrote, pruned
             rec.write_text(str(out))
         filled = read_model(out)
     finally:
@@ -535,6 +544,26 @@ def triangulate_known_poses(photos_dir: str | Path, model: ColmapModel,
     if agreement is not None and agreement.warns:
         result.notes.append(agreement.sentence())
     return result
+
+
+def _drop_short_tracks(rec: Any) -> None:
+    """Remove ``rec``'s points fewer than :data:`.guided.MIN_TRACK` views see: a guided
+    match's false twin lies on the same epipolar line, where two views cannot tell it."""
+    from .guided import MIN_TRACK
+
+    for pid in [pid for pid, point in rec.points3D.items()
+                if point.track.length() < MIN_TRACK]:
+        rec.delete_point3D(pid)
+
+
+def _guide(db: Any, model: ColmapModel, db_ids: dict[str, tuple[int, int]],
+           progress: Progress) -> None:
+    """Add the given poses' guided matches (:mod:`.guided`) to ``db`` (the cameras are
+    at the photos' size, as the triangulation needs them)."""
+    from .guided import add_guided_matches
+
+    added = add_guided_matches(db, {db_ids[cam.name][0]: cam for cam in model.cameras})
+    progress.message(f"{added} more matches near the poses' epipolar lines")
 
 
 def _match_agreement(db: Any, model: ColmapModel, db_ids: dict[str, tuple[int, int]]):
