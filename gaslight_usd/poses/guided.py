@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..cameras import PinholeCamera
+from .agreement import essential
 
 EPIPOLAR_PX = 2.0
 """Largest distance (pixels, both ways) of a match from its epipolar line: given poses
@@ -49,10 +50,7 @@ least number of inliers for a verified pair)."""
 
 def fundamental(cam_a: PinholeCamera, cam_b: PinholeCamera) -> np.ndarray:
     """(3, 3) F with ``x_b^T F x_a = 0`` for pixel positions of one point in both views."""
-    R = cam_b.R @ cam_a.R.T
-    t = cam_b.t - R @ cam_a.t
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    return np.linalg.inv(cam_b.K).T @ (tx @ R) @ np.linalg.inv(cam_a.K)
+    return np.linalg.inv(cam_b.K).T @ essential(cam_a, cam_b) @ np.linalg.inv(cam_a.K)
 
 
 def epipolar_distances(F: np.ndarray, xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
