@@ -391,9 +391,13 @@ def test_chain_scores_the_uplifts_fill_of_each_light(monkeypatch, tmp_path):
     # each probe's row says how much the splats lay on the probe point itself
     from gaslight_usd.probe_check import inside_alpha
     probes = json.loads((example / "probes" / "probes.json").read_text())["probes"]
-    rows = suite_chain.probe_rows(scene, example, scale, relight=False)
+    from gaslight_usd.usd.rig import build_rig
+    rows = suite_chain.probe_rows(scene, example, scale, relight=False,
+                                  rig=build_rig(scene, width=64))
     assert [row["inside_alpha"] for row in rows] == [
         inside_alpha(p["position"], scene) for p in probes]
+    # and how the rig the export writes lights each probe
+    assert all(np.isfinite(row["rig_irradiance_psnr"]) for row in rows)
 
 
 def test_chain_scores_a_sunlit_patch_like_a_light():

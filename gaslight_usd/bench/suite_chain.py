@@ -43,6 +43,10 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``unseen_deg_<light>`` -- how far the probe sees each true light from every photo that
   saw it (degrees at the light, from the fit's light sightings: what ``hdri`` warns
   about, :mod:`gaslight_usd.probe_check`);
+* ``rig_irradiance_psnr`` -- ``irradiance_psnr`` of the light rig the export writes
+  (:func:`gaslight_usd.usd.rig.build_rig` at its default probe: the dome and the lights,
+  windows and panels as rectangles), evaluated at the probe as a renderer lighting with
+  the rig alone would (:func:`gaslight_usd.usd.rig.rig_irradiance`);
 * ``inside_alpha`` -- the opacity the fit's splats lay on the probe point itself: a probe
   among splats floating in the room sees them from inside (what ``hdri`` warns about
   over :data:`gaslight_usd.probe_check.INSIDE_ALPHA`);
@@ -92,6 +96,7 @@ from ..errors import GaslightError
 from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
 from ..fit import fit_splats, load_fit_data, preset
 from ..imageio import read_image
+from ..lights import search_lights
 from ..locate import example_room, find_data
 from ..probe_check import inside_alpha, unseen_angles
 from ..render.envmap import render_latlong
@@ -264,7 +269,8 @@ def emitter_distance(light: dict[str, Any], points: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points - nearest, axis=1)
 
 
-def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str, Any]:
+def light_placement(scene: SplatScene, lights: list[dict[str, Any]], search=None
+                    ) -> dict[str, Any]:
     """Where the output's lights are (:func:`gaslight_usd.lights.find_lights`, the rig
     the USD export writes) against the true emitters:
 
@@ -276,7 +282,7 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]]) -> dict[str
     """
     from ..lights import search_lights
 
-    search = search_lights(scene)
+    search = search if search is not None else search_lights(scene)
     found = search.lights
     row: dict[str, Any] = {"lights_found": len(found), **emitter_spread(scene, search.emitters,
                                                                         lights)}
@@ -525,9 +531,29 @@ def unseen_columns(scene: SplatScene, lights: list[dict[str, Any]], position: np
             for light, a in zip(lights, angles, strict=True)}
 
 
+RIG_DOME_WIDTH = 256
+"""The rig's dome is drawn this wide for ``rig_irradiance_psnr`` (irradiance is smooth:
+the export's 1024 moves it little and costs 16 times the pixels)."""
+
+
+def rig_irradiance_psnr(rig, truth: np.ndarray, position: np.ndarray, space: str,
+                        scale: float) -> float:
+    """``irradiance_psnr`` of the rig's light at ``position`` against the truth panorama."""
+    from ..usd.rig import rig_irradiance
+
+    normals = fibonacci_normals()
+    rgb = rig_irradiance(rig, position, normals)
+    if space != TRUTH_SPACE:
+        rgb = convert(rgb.astype(np.float32), space, TRUTH_SPACE).astype(np.float64)
+    found = (rgb * scale) @ np.array(REC709_Y)
+    e_true = irradiance_luminance(truth, normals)
+    return psnr_from_mse(float(np.mean((found - e_true) ** 2)), peak=float(e_true.max()))
+
+
 def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
-               renderer=None) -> list[dict[str, Any]]:
-    """One row per probe: the scores of the module docstring."""
+               renderer=None, rig=None) -> list[dict[str, Any]]:
+    """One row per probe: the scores of the module docstring (``rig_irradiance_psnr``
+    where ``rig``, a :class:`gaslight_usd.usd.rig.Rig` of ``scene``, is given)."""
     info = json.loads((folder / "scene.json").read_text())
     probes = json.loads((folder / "probes" / "probes.json").read_text())["probes"]
     lights = scene_lights(info)
@@ -547,6 +573,8 @@ def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
                                **power_errors(pano, truth, lit_regions(info), pos),
                                **unseen_columns(scene, lights, pos),
                                "inside_alpha": inside_alpha(pos, scene)}
+        if rig is not None:
+            row["rig_irradiance_psnr"] = rig_irradiance_psnr(rig, truth, pos, space, scale)
         errs = [abs(v) for v in light_errors.values()]
         row["power_err_stops_max"] = max(errs) if errs else float("nan")
         if relight:
@@ -557,6 +585,8 @@ def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,
 
 
 def run(options: dict[str, Any]) -> list[dict[str, Any]]:
+    from ..usd.rig import build_rig
+
     quick = bool(options.get("quick"))
     seed = int(options.get("seed", 0))
     out = Path(options.get("out") or ".")
@@ -587,7 +617,8 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                 scene, seconds, scale, metrics = fitted_scene(folder, method, work,
                                                               preset_name, seed)
                 info = json.loads((folder / "scene.json").read_text())
-                placement = light_placement(scene, scene_lights(info))
+                search = search_lights(scene)
+                placement = light_placement(scene, scene_lights(info), search)
                 placement |= weighing_summary(metrics.get("clipped_lights") or [],
                                               scene_lights(info))
                 placement["one_photo_lights"] = int(
@@ -601,8 +632,9 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                                                          int(metrics.get("backdrop_splats", 0)))
                 placement |= room_box_fit(metrics.get("room_box") or [], info["room"])
                 placement |= metrics.get("uplift_fill", {})
+                rig = build_rig(scene, width=RIG_DOME_WIDTH, search=search)
                 for row in probe_rows(scene, folder, scale, relight=not quick,
-                                      renderer=renderer):
+                                      renderer=renderer, rig=rig):
                     rows.append({"method": method, "setting": preset_name,
                                  "scene": scene_name, "seconds": round(seconds, 2),
                                  "splats": metrics["splats"], **row, **placement})

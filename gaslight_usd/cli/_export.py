@@ -32,7 +32,9 @@ variant per form, each referencing .usdc layers written beside it:
                  colours share a palette as small as keeps the 95th percentile
                  relative colour error <= --palette-tolerance
   rig            a DomeLight (lat-long EXR of the other splats at --at) plus one
-                 SphereLight per light of the set, powers measured at that point
+                 light per light of the set: a RectLight in its wall or ceiling
+                 for a window or panel there, else a SphereLight; powers
+                 measured at that point
                  (the error against --rig-tolerance is reported)
 
 Lights: clusters of splats brighter than the photos' white that no diffuse

@@ -8,7 +8,7 @@ variant        prim under /Scene                     layer(s)
 =============  ====================================  ===============================
 particlefield  ``Splats`` (Xform, ``Part_000``...)    ``<stem>.particlefield[.NNN].usdc``
 instancer      ``Emitters`` (Xform + PointInstancer)  ``<stem>.instancer.usdc``
-rig            ``Rig`` (DomeLight + SphereLights)     ``<stem>.rig.usdc`` + dome EXR
+rig            ``Rig`` (DomeLight + UsdLux lights)   ``<stem>.rig.usdc`` + dome EXR
 =============  ====================================  ===============================
 
 Each layer opens on its own too (units, up axis, colour space, provenance on

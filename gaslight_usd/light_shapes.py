@@ -1,0 +1,144 @@
+"""Which of the set's lights are flat panels in a wall or ceiling, and their rectangles.
+
+A window, a skylight or a ceiling panel is a rectangle in the room's wall or
+ceiling that emits into the room; a TD expects it as a ``UsdLux.RectLight`` there,
+not as a sphere floating in front of it (the rig, :mod:`gaslight_usd.usd.rig`). The
+fit knows the room's planes (``fit_metrics.room_box``, :func:`gaslight_usd.fit.planes.room_box`:
+normals towards the cameras), so a light (:class:`gaslight_usd.lights.Light`) is a
+panel when
+
+* its centre lies within :data:`ON_PLANE_SHARE` of the captured space's median depth
+  of one of those planes, and
+* its splats spread off that plane by at most :data:`FLAT_RATIO` of their larger
+  spread within it (a bulb hung by a wall is round, not flat).
+
+Its rectangle lies in the plane (nudged :data:`NUDGE_SHARE` of the median depth into
+the room, so it is not coplanar with a wall mesh of the set), its sides along the room's
+other planes where one is square to it (windows and panels are set square to their
+walls), its half-sizes the light's spread along them (a uniform box of the splats'
+spread, as :attr:`Light.extent <gaslight_usd.lights.Light.extent>`). Sets without a
+room box (a fit that found no two facing walls) keep every light round.
+
+``gaslight2usd bench --suite chain`` (``rig_irradiance_psnr``) measures what writing
+panels as rectangles does to the rig's light at the probes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+ON_PLANE_SHARE = 0.05
+"""A panel's centre lies within this share of the captured space's median depth of its
+plane (0.1 m in a room whose walls are 2 m from the cameras; the bench rooms' windows
+and panels were found within 0.08 m of theirs, their bulbs 0.4 m or more away)."""
+FLAT_RATIO = 0.75
+"""A panel's spread off its plane is at most this share of its larger spread in it."""
+SQUARE_COS = 0.2
+"""Another room plane whose normal is within this |cos| of square to the panel's plane
+sets the rectangle's sides."""
+NUDGE_SHARE = 0.005
+"""The rectangle sits this share of the median depth in front of its plane."""
+
+
+@dataclass
+class Panel:
+    """A flat light's rectangle: ``centre + s * half_size[0] * u + t * half_size[1] * v``
+    for s, t in [-1, 1], emitting towards ``normal`` (into the room)."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    """``u x v = -normal``: a ``UsdLux.RectLight``'s X, Y (it emits along its -Z)."""
+    half_size: np.ndarray
+    plane_offset: float
+    """How far the light's centre was from its plane (before it was put on it)."""
+
+    @property
+    def area(self) -> float:
+        return float(4.0 * self.half_size[0] * self.half_size[1])
+
+    def corners(self) -> np.ndarray:
+        """(4, 3) corners, counter-clockwise seen from the front."""
+        hu, hv = self.half_size[0] * self.u, self.half_size[1] * self.v
+        return np.stack([self.centre - hu - hv, self.centre - hu + hv,
+                         self.centre + hu + hv, self.centre + hu - hv])
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"centre": [round(float(x), 5) for x in self.centre],
+                "normal": [round(float(x), 5) for x in self.normal],
+                "width": round(float(2 * self.half_size[0]), 5),
+                "height": round(float(2 * self.half_size[1]), 5),
+                "plane_offset": round(self.plane_offset, 5)}
+
+
+def room_planes(metadata: Mapping[str, Any]) -> list[tuple[np.ndarray, float]]:
+    """(unit normal towards the cameras, offset = normal . x) of the fit's room box."""
+    fit = metadata.get("fit_metrics")
+    box = fit.get("room_box") if isinstance(fit, Mapping) else None
+    planes = []
+    for plane in box or []:
+        normal = np.asarray(plane.get("normal", ()), np.float64)
+        if normal.shape != (3,) or not np.all(np.isfinite(normal)):
+            continue
+        length = float(np.linalg.norm(normal))
+        if length > 0 and np.isfinite(float(plane.get("offset", np.nan))):
+            planes.append((normal / length, float(plane["offset"]) / length))
+    return planes
+
+
+def _spread(extent: np.ndarray, axes: np.ndarray, direction: np.ndarray) -> float:
+    """Half-size of the light's uniform box along ``direction``."""
+    return float(np.sqrt(((extent * (axes @ direction)) ** 2).sum()))
+
+
+def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
+             planes: Sequence[tuple[np.ndarray, float]], median_depth: float
+             ) -> Panel | None:
+    """The light's rectangle in a room plane, or None when it is not a flat panel there.
+
+    ``position``, ``extent`` and ``axes``: the light's centre, half-sizes and their
+    directions (rows), as :class:`gaslight_usd.lights.Light` holds them."""
+    if not planes or not np.isfinite(median_depth) or median_depth <= 0:
+        return None
+    position = np.asarray(position, np.float64)
+    extent, axes = np.asarray(extent, np.float64), np.asarray(axes, np.float64)
+    offsets = np.array([normal @ position - offset for normal, offset in planes])
+    k = int(np.argmin(np.abs(offsets)))
+    if abs(offsets[k]) > ON_PLANE_SHARE * median_depth:
+        return None
+    normal = planes[k][0]
+    across = [m for m, _ in planes if abs(m @ normal) < SQUARE_COS]
+    if across:
+        side = min(across, key=lambda m: abs(m @ normal))
+    else:  # no square plane: the light's own longest direction in the plane
+        side = axes[int(np.argmax(np.linalg.norm(axes - np.outer(axes @ normal, normal),
+                                                 axis=1) * extent))]
+    u = side - (side @ normal) * normal
+    if np.linalg.norm(u) < 1e-6:
+        return None
+    u /= np.linalg.norm(u)
+    v = np.cross(u, normal)
+    half = np.array([_spread(extent, axes, u), _spread(extent, axes, v)])
+    if _spread(extent, axes, normal) > FLAT_RATIO * half.max() or half.min() <= 0:
+        return None
+    centre = position - offsets[k] * normal + NUDGE_SHARE * median_depth * normal
+    return Panel(centre=centre, normal=normal.copy(), u=u, v=v, half_size=half,
+                 plane_offset=float(offsets[k]))
+
+
+def solid_angle(corners: np.ndarray, point: np.ndarray) -> float:
+    """Solid angle (sr) of the planar quadrilateral ``corners`` (4, 3) seen from ``point``:
+    two triangles, each by Van Oosterom and Strackee's formula."""
+    rel = np.asarray(corners, np.float64) - np.asarray(point, np.float64)
+    total = 0.0
+    for a, b, c in ((rel[0], rel[1], rel[2]), (rel[0], rel[2], rel[3])):
+        la, lb, lc = np.linalg.norm(a), np.linalg.norm(b), np.linalg.norm(c)
+        num = abs(float(a @ np.cross(b, c)))
+        den = la * lb * lc + (a @ b) * lc + (a @ c) * lb + (b @ c) * la
+        total += 2.0 * float(np.arctan2(num, den))
+    return total
