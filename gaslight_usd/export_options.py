@@ -40,7 +40,7 @@ class UsdExportOptions:
     """What the instancer does with splats below the threshold: drop | diffuse."""
     rig_tolerance: float = RIG_TOLERANCE
     at: Any = None
-    """The rig's probe point (x, y, z); None: the centre of the splats' bounds."""
+    """The rig's probe point (x, y, z); None: :func:`gaslight_usd.probe.default_probe`."""
     dome_width: int = DOME_WIDTH
     max_layer_bytes: int | None = None
     """Split ParticleField layers above this size (None: the writer's 3 GiB)."""

@@ -93,7 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="irradiance error at the probe allowed for the rig, relative "
                         f"to its largest irradiance (default {D.rig_tolerance})")
     p.add_argument("--at", type=parse_point, metavar="X,Y,Z",
-                   help="rig probe point (default: centre of the splats' bounds)")
+                   help="rig probe point (default: where the cameras stood, at their "
+                        "median height, moved to free space; a PLY without camera "
+                        "centres: the opaque splats' median)")
     p.add_argument("--dome-size", type=int, default=D.dome_width, metavar="N",
                    help=f"dome lat-long width in pixels (default {D.dome_width})")
     p.add_argument("--display-ply", type=Path, metavar="PATH",
