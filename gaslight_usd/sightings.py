@@ -8,8 +8,9 @@ it can put a flat light at any depth along the rays that see it. The views settl
 - each view's **light regions** (luminance at or over the white, in blocks of the view
   at most :data:`gaslight_usd.fit.frame_edge.ANALYSIS_SIZE` across, a block over the
   white when any of its pixels is: a bulb a pixel wide is not averaged away) become
-  **cones** from its camera: the region's centroid ray, and the widest angle of any of
-  its blocks from it plus half a block (:func:`sight_lights`);
+  **cones** from its camera: the ray to the region's centroid (in a view that clipped
+  nothing weighted by its blocks' luminance: the light, not the lit wall round it), and
+  the widest angle of any of its blocks from it plus half a block (:func:`sight_lights`);
 - a light no cone holds any of is **not seen** by the photos (:meth:`Sightings.seen`):
   nothing over the white was photographed where it is;
 - a light two views frame **whole** (regions clear of the border) from at least
@@ -200,14 +201,20 @@ def peak_map(image: np.ndarray, weights: np.ndarray, white: float | None,
 
 
 def sight_lights(cameras: list[PinholeCamera], images: Sequence[np.ndarray | PeakMap],
-                 white: float | Sequence[float], weights: np.ndarray) -> Sightings:
+                 white: float | Sequence[float], weights: np.ndarray,
+                 measured: bool | Sequence[bool] = False) -> Sightings:
     """The light regions of ``images`` (linear HDR, one per camera, or their
     :class:`PeakMap`) over ``white`` (luminance with ``weights``; one for all views,
     or one per view: see :func:`view_whites`), as cones from the cameras (module
-    docstring)."""
+    docstring). ``measured`` (one for all views, or one per view): the view clipped
+    nothing, so its regions' brightness is measured and each cone's ray goes to the
+    region's brightness-weighted centroid (:func:`_bright_centroids`); a clipped
+    view's region holds the uplift's fill, whose shape is a guess, and keeps its plain
+    centroid."""
     from .fit.frame_edge import WHOLE, light_regions, pixel_rays
 
     per_view = np.broadcast_to(np.asarray(white, np.float64), (len(images),))
+    weigh = np.broadcast_to(np.asarray(measured, bool), (len(images),))
     view, axes, radii, whole, whites = [], [], [], [], []
     for v, (cam, image) in enumerate(zip(cameras, images, strict=True)):
         peaks = image if isinstance(image, PeakMap) else peak_map(image, weights, per_view[v])
@@ -221,9 +228,11 @@ def sight_lights(cameras: list[PinholeCamera], images: Sequence[np.ndarray | Pea
         sy = peaks.block * cam.height / peaks.size[1]
         summed = ndimage.sum(ratio, reg.labels, np.arange(1, count + 1))
         keep = np.argsort(-summed, kind="stable")[:MAX_REGIONS_PER_VIEW]
-        axis = pixel_rays(cam, reg.centroids * [sx, sy])
         ys, xs = np.nonzero(reg.labels)
         lab = reg.labels[ys, xs] - 1
+        centroids = (_bright_centroids(ratio[ys, xs], xs, ys, lab, count) if weigh[v]
+                     else reg.centroids)
+        axis = pixel_rays(cam, centroids * [sx, sy])
         rays = pixel_rays(cam, np.stack([(xs + 0.5) * sx, (ys + 0.5) * sy], axis=1))
         ang = np.arccos(np.clip((rays * axis[lab]).sum(1), -1.0, 1.0))
         widest = np.zeros(count)
@@ -242,6 +251,27 @@ def sight_lights(cameras: list[PinholeCamera], images: Sequence[np.ndarray | Pea
     return Sightings(np.array([c.center for c in cameras]), np.concatenate(view),
                      np.concatenate(axes), np.concatenate(radii), np.concatenate(whole),
                      np.concatenate(whites), recorded)
+
+
+def _bright_centroids(ratio: np.ndarray, xs: np.ndarray, ys: np.ndarray, lab: np.ndarray,
+                      count: int) -> np.ndarray:
+    """(count, 2) each region's centroid (x, y, pixel centres at +0.5) weighted by its
+    blocks' luminance in whites.
+
+    A region holds everything over the white round a light: in an HDR view (merged
+    brackets, true HDR) the walls a bare bulb lights are over the white too, and the
+    region's plain centroid lay 3-5 degrees off the bulb in the chain bench's hall
+    (``truth HDR``), enough for two views 15 degrees apart to place the bulb 1.5 m off.
+    Weighted, the bulb thousands of whites bright is the region's centre; a region of
+    even brightness (a window) keeps its plain centroid. Only for views that clipped
+    nothing: weighted by the uplift's fill, the photos' regions moved the bulbs the fit
+    seeds and weighs (``gaslight2usd bench --suite chain --method recursive``: `bulb:11`
+    27.3 -> 7.8 dB at the middle probe, docs/measurements.md, session 48)."""
+    w = np.maximum(np.asarray(ratio, np.float64), 1e-12)
+    total = np.bincount(lab, w, minlength=count)
+    cx = np.bincount(lab, w * (xs + 0.5), minlength=count) / total
+    cy = np.bincount(lab, w * (ys + 0.5), minlength=count) / total
+    return np.stack([cx, cy], axis=1)
 
 
 def view_whites(floors: Sequence[np.ndarray | None], fallback: float) -> np.ndarray:

@@ -144,3 +144,32 @@ def test_a_light_clipped_at_the_white_is_a_region_whatever_the_float_sums_say():
     cam = aimed_camera(np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 0.6, 40)
     found = sight_lights([cam], [image], 0.9, np.array([0.2126, 0.7152, 0.0722], np.float32))
     assert len(found.view) == 1 and bool(found.whole[0])
+
+
+def test_a_measured_views_region_points_at_the_bulb_not_the_lit_wall_round_it():
+    """In a view that clipped nothing (merged brackets, true HDR) the wall a bare bulb
+    lights is over the white too: one region, most of it wall. Its ray goes to the bulb;
+    a clipped photo's region, whose values over the white are the uplift's guess, keeps
+    its plain centroid, as does a measured region of even brightness."""
+    from gaslight_usd.fit.frame_edge import pixel_rays
+
+    def angle(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.degrees(np.arccos(np.clip(a @ b, -1.0, 1.0))))
+
+    cam = aimed_camera(np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 0.6, 64)
+    image = np.full((64, 64, 3), 0.2, np.float32)
+    image[20:44, 20:44] = 2.0  # the lit wall, two whites
+    image[22:24, 40:42] = 5000.0  # the bulb, near the glow's corner
+    bulb = pixel_rays(cam, np.array([[41.0, 23.0]]))[0]
+    middle = pixel_rays(cam, np.array([[32.0, 32.0]]))[0]
+    assert angle(middle, bulb) > 5.0
+    found = sight_lights([cam], [image], 1.0, Y709, measured=True)
+    assert len(found.view) == 1
+    assert angle(found.axes[0], bulb) < 1.5
+    assert found.radii[0] >= np.radians(10.0)  # the cone still holds the whole region
+    clipped = sight_lights([cam], [image], 1.0, Y709)  # a photo's region at its fill
+    assert angle(clipped.axes[0], middle) < 0.5
+    even = np.full((64, 64, 3), 0.2, np.float32)
+    even[20:44, 20:44] = 2.0
+    plain = sight_lights([cam], [even], 1.0, Y709, measured=True)
+    assert angle(plain.axes[0], middle) < 0.5

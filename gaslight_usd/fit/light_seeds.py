@@ -386,7 +386,8 @@ def measured_light_seeds(cameras: list[PinholeCamera],
     if not level > 0:
         return []
     whites = np.full(len(light_views), ratio * level)
-    return seed_lights(sight_lights(cameras, light_views, whites, luma), cameras)
+    return seed_lights(sight_lights(cameras, light_views, whites, luma, measured=True),
+                       cameras)
 
 
 def measured_level(images: list[np.ndarray], y_weights: np.ndarray) -> float:

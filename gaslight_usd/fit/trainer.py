@@ -606,7 +606,13 @@ class Trainer:
         if whites is None:
             whites = float(self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
         return sight_lights(self.data.cameras, self.data.light_views(), whites,
-                            self.y_weights.cpu().numpy()).as_dict()
+                            self.y_weights.cpu().numpy(),
+                            self._measured_views(range(len(self.data.images)))).as_dict()
+
+    def _measured_views(self, views) -> list[bool]:
+        """Per view of ``views``: it clipped nothing (its light regions are measured)."""
+        floors = [self.data.floor(i) for i in views]
+        return [f is None or not bool(np.any(f > 0)) for f in floors]
 
     def _fine_power(self, scene: SplatScene) -> tuple[SplatScene, list[FinePower]]:
         """The lights the views measured (no view clipped), brightened to keep drawn fine
@@ -735,7 +741,7 @@ class Trainer:
         cams = self.cameras()
         views = [cams[i] for i in self.train]
         photos = [self.data.light_views()[i] for i in self.train]
-        sightings = sight_lights(views, photos, whites, weights)
+        sightings = sight_lights(views, photos, whites, weights, self._measured_views(self.train))
         scene, surfaced = surface_sunk_lights(scene, views, photos, whites, weights, sightings,
                                               rules=rules, planes=self.room_planes,
                                               broad_on_planes=broad_on_planes)
