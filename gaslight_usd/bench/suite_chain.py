@@ -110,7 +110,7 @@ X = ("seconds", "uplift + fit seconds")
 Y = ("irradiance_psnr", "probe irradiance PSNR (dB)")
 HIGHER_IS_BETTER = True
 TABLE = ("scene", "probe", "seconds", "irradiance_psnr", "relight_psnr", "pu21_psnr_peak",
-         "power_err_stops_max")
+         "power_err_stops_max", "rig_irradiance_psnr")
 REFERENCES = ("truth HDR", "clipped photos")
 TRUTH_HDR_METHOD = "measured (the scene's true HDR views)"
 """The ``hdr_method`` a fit from the true HDR views carries: its lights' power is
