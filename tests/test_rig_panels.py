@@ -28,7 +28,7 @@ def boxed_room() -> tuple[SplatScene, dict]:
     return scene, parts
 
 
-def test_solid_angle_of_a_square_and_from_behind():
+def test_solid_angle_of_a_square_near_and_far():
     # a 2 x 2 square 1 away, seen from its axis: 4 asin(ab / sqrt((a^2+4d^2)(b^2+4d^2)))
     square = np.array([[-1, -1, 1], [-1, 1, 1], [1, 1, 1], [1, -1, 1]], np.float64)
     assert solid_angle(square, np.zeros(3)) == pytest.approx(2 * math.pi / 3, rel=1e-9)

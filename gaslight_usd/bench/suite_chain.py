@@ -280,8 +280,6 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]], search=None
     * ``stray_light_share`` -- the share of the found lights' power more than 0.3 m from
       every true emitter (floating or smeared bright splats).
     """
-    from ..lights import search_lights
-
     search = search if search is not None else search_lights(scene)
     found = search.lights
     row: dict[str, Any] = {"lights_found": len(found), **emitter_spread(scene, search.emitters,

@@ -390,8 +390,9 @@ def rig_irradiance(rig: Rig, point: np.ndarray, normals: np.ndarray,
         if panel is None:
             to = rig.lights["position"][i] - point
             r = float(rig.lights["radius"][i])
-            d = max(float(np.linalg.norm(to)), 1.01 * r, 1e-9)
-            cos = np.clip(normals @ (to / d), 0.0, None)
+            dist = max(float(np.linalg.norm(to)), 1e-9)
+            d = max(dist, 1.01 * r)  # a point inside the sphere: as if at its surface
+            cos = np.clip(normals @ (to / dist), 0.0, None)
             total += np.outer(cos, radiance) * np.pi * r * r / (d * d)
             continue
         spots = (panel.centre + np.outer(s * panel.half_size[0], panel.u)
