@@ -117,3 +117,28 @@ def test_guided_matching_adds_points_on_the_examples_surfaces(tmp_path):
             assert all(len(track) >= 3 for track in model.tracks)
     assert counts[True] > 1.3 * counts[False]
     assert inside[True] > 0.95 and inside[True] >= inside[False] - 0.01
+
+
+@needs_example
+@pytest.mark.slow
+def test_the_fit_triangulates_again_with_guided_matches_only_where_points_are_few(
+        monkeypatch):
+    """``fit.triangulate.triangulate_views``: the example's true HDR views with their
+    poses give dense points plainly (two-view points kept), and the guided, despeckled
+    pass runs only when a view averages fewer than ``SPARSE_POINTS_PER_VIEW`` (forced
+    here), where it keeps the denser result (every point seen three times)."""
+    from gaslight_usd.fit import triangulate
+
+    truth = read_poses(EXAMPLE / "sparse" / "0")
+    names = truth.names[::2]  # twelve views: half the time
+    from gaslight_usd.poses.colmap import ColmapModel
+
+    model = ColmapModel(cameras=[c for c in truth.cameras if c.name in names])
+    views = {name: EXAMPLE / "truth" / (name.rsplit(".", 1)[0] + ".exr") for name in names}
+    plain = triangulate.triangulate_views(model, views)
+    assert len(plain.points) >= triangulate.SPARSE_POINTS_PER_VIEW * len(names)
+    assert min(len(track) for track in plain.tracks) == 2
+    monkeypatch.setattr(triangulate, "SPARSE_POINTS_PER_VIEW", 10**6)
+    again = triangulate.triangulate_views(model, views)
+    assert len(again.points) > len(plain.points)
+    assert min(len(track) for track in again.tracks) >= 3

@@ -23,12 +23,21 @@ from ..poses.colmap import ColmapModel
 from ..progress import Progress
 
 DESPECKLE = 3
-"""Side (pixels) of the median filter the tone-mapped views pass before SIFT. A room lit
-indirectly (a shaded lamp) and path traced, or shot at high ISO, is speckled at every
-pixel, and SIFT finds its features in the speckle, which no other view shares: the fit
-then starts from a handful of points and draws the walls off their places (``gaslight2usd
-bench --suite chain --scene shade``, ``docs/measurements.md``). In a clean view a 3 x 3
-median moves little but the finest texture."""
+"""Side (pixels) of the median filter the tone-mapped views pass before SIFT when the plain
+views give too few points (:data:`SPARSE_POINTS_PER_VIEW`). A room lit indirectly (a
+shaded lamp) and path traced, or shot at high ISO, is speckled at every pixel, and SIFT
+finds its features in the speckle, which no other view shares: the fit then starts from a
+handful of points and draws the walls off their places (``gaslight2usd bench --suite chain
+--scene shade``, ``docs/measurements.md``)."""
+SPARSE_POINTS_PER_VIEW = 10
+"""Fewer points than this per view and the views are triangulated again, despeckled
+(:data:`DESPECKLE`) and with matches the poses guide (:mod:`gaslight_usd.poses.guided`).
+The chain bench's speckled shaded-lamp room gave 2 per view (38 from 18 views), 20 with
+both; its other rooms 22-30 and the example 48 without them. Where the plain start is
+dense the second pass costs: its extra points include faint false ones in front of the
+windows that the fit keeps as a veil, and from true HDR views, from photos with darker
+frames and on the example's photos its fits lost 2-10 dB (session 48's measurements);
+where it is sparse it is what draws the walls where they are."""
 MID_GREY = 0.18
 """Where the median luminance of all views lands after the shared exposure."""
 
@@ -79,12 +88,10 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
     cameras are then scaled to the views' size for the triangulation, so the
     returned model's cameras are at that size (the points are the same).
     Failure (too little texture, an image type COLMAP cannot read) is not an
-    error: the caller falls back to a points-free start.
+    error: the caller falls back to a points-free start. Views that give fewer than
+    :data:`SPARSE_POINTS_PER_VIEW` points each are triangulated again, despeckled and
+    with guided matches, and the denser result is kept.
     """
-    import OpenImageIO as oiio
-
-    from ..poses.sfm import SfmOptions, triangulate_known_poses
-
     progress = progress or Progress(quiet=True)
     work = Path(tempfile.mkdtemp(prefix="gaslight-fit-tri-"))
     try:
@@ -93,28 +100,49 @@ def triangulate_views(model: ColmapModel, view_paths: dict[str, Path],
         model = _model_at_view_size(model, images)
         space = next(iter(read.values())).colour_space if read else None
         scale = shared_scale(list(images.values()), luminance_weights(space, fallback=True))
-        for name, image in images.items():
-            target = work / name
-            target.parent.mkdir(parents=True, exist_ok=True)
-            buf = oiio.ImageBuf(np.ascontiguousarray(despeckle(tone_map_8bit(image, scale))))
-            if not buf.write(str(target)):
-                progress.message(f"cannot write a tone-mapped view as {name!r}; "
-                                 "no triangulation")
-                return None
-        progress.message(f"triangulating sparse points from {len(images)} HDR views "
-                         "(poses fixed)")
-        try:
-            # one thread throughout: COLMAP's threaded extraction, matching and
-            # triangulation order their work by timing, so the points (and the fit
-            # after them) would change from run to run; the fit must be deterministic
-            # for a seed. The views are at the working size, so one thread is cheap.
-            filled = triangulate_known_poses(work, model,
-                                             SfmOptions(threads=1, extraction_threads=1,
-                                                        matching_threads=1),
-                                             progress=progress)
-        except (GaslightError, RuntimeError, ValueError) as err:
-            progress.message(f"triangulation failed ({err}); starting without points")
-            return None
-        return filled
+        tone_mapped = {name: tone_map_8bit(image, scale) for name, image in images.items()}
+        filled = _triangulate(work / "plain", model, tone_mapped, False, progress)
+        enough = SPARSE_POINTS_PER_VIEW * len(images)
+        if filled is not None and len(filled.points) >= enough:
+            return filled
+        progress.message(f"{0 if filled is None else len(filled.points)} points from "
+                         f"{len(images)} views (under {SPARSE_POINTS_PER_VIEW} a view): "
+                         "again, despeckled and with matches the poses guide")
+        again = _triangulate(work / "guided", model,
+                             {name: despeckle(v) for name, v in tone_mapped.items()}, True,
+                             progress)
+        if again is None or (filled is not None and len(again.points) <= len(filled.points)):
+            return filled
+        return again
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def _triangulate(work: Path, model: ColmapModel, views: dict[str, np.ndarray], guided: bool,
+                 progress: Progress) -> ColmapModel | None:
+    """``model`` with points triangulated from the 8-bit ``views`` (written into ``work``),
+    ``guided``: with the poses' guided matches; None when that fails."""
+    import OpenImageIO as oiio
+
+    from ..poses.sfm import SfmOptions, triangulate_known_poses
+
+    for name, view in views.items():
+        target = work / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if not oiio.ImageBuf(np.ascontiguousarray(view)).write(str(target)):
+            progress.message(f"cannot write a tone-mapped view as {name!r}; no triangulation")
+            return None
+    progress.message(f"triangulating sparse points from {len(views)} HDR views "
+                     "(poses fixed)")
+    try:
+        # one thread throughout: COLMAP's threaded extraction, matching and triangulation
+        # order their work by timing, so the points (and the fit after them) would change
+        # from run to run; the fit must be deterministic for a seed. The views are at the
+        # working size, so one thread is cheap.
+        return triangulate_known_poses(work, model,
+                                       SfmOptions(threads=1, extraction_threads=1,
+                                                  matching_threads=1, guided_matching=guided),
+                                       progress=progress)
+    except (GaslightError, RuntimeError, ValueError) as err:
+        progress.message(f"triangulation failed ({err}); starting without points")
+        return None
