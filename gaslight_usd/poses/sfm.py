@@ -87,7 +87,10 @@ class SfmOptions:
     guided_matching: bool = True
     """With the poses known (:func:`triangulate_known_poses`), also match features near
     their epipolar lines (:mod:`gaslight_usd.poses.guided`): smooth walls keep points
-    the plain ratio test loses."""
+    the plain ratio test loses. The fit's own triangulation from its HDR views turns it on
+    only where the plain pass is sparse
+    (:data:`gaslight_usd.fit.triangulate.SPARSE_POINTS_PER_VIEW`: where it is dense, the
+    guided points' faint false ones cost the fits)."""
     verbose: bool = False
 
 
