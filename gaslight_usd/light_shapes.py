@@ -33,8 +33,8 @@ import numpy as np
 
 ON_PLANE_SHARE = 0.05
 """A panel's centre lies within this share of the captured space's median depth of its
-plane (0.1 m in a room whose walls are 2 m from the cameras; the bench rooms' windows
-and panels were found within 0.08 m of theirs, their bulbs 0.4 m or more away)."""
+plane: a window or panel the fit found sits in its plane to a few centimetres, a hanging
+bulb a good share of the room's height away (docs/measurements.md, session 48)."""
 FLAT_RATIO = 0.75
 """A panel's spread off its plane is at most this share of its larger spread in it."""
 SQUARE_COS = 0.2

@@ -260,13 +260,13 @@ def _bright_centroids(ratio: np.ndarray, xs: np.ndarray, ys: np.ndarray, lab: np
 
     A region holds everything over the white round a light: in an HDR view (merged
     brackets, true HDR) the walls a bare bulb lights are over the white too, and the
-    region's plain centroid lay 3-5 degrees off the bulb in the chain bench's hall
-    (``truth HDR``), enough for two views 15 degrees apart to place the bulb 1.5 m off.
-    Weighted, the bulb thousands of whites bright is the region's centre; a region of
-    even brightness (a window) keeps its plain centroid. Only for views that clipped
-    nothing: weighted by the uplift's fill, the photos' regions moved the bulbs the fit
-    seeds and weighs (``gaslight2usd bench --suite chain --method recursive``: `bulb:11`
-    27.3 -> 7.8 dB at the middle probe, docs/measurements.md, session 48)."""
+    region's plain centroid lies off the bulb, enough for two views 15 degrees apart
+    to place the bulb metres off. Weighted, the bulb thousands of whites bright is the
+    region's centre; a region of even brightness (a window) keeps its plain centroid.
+    Only for views that clipped nothing: a clipped photo's region holds the uplift's
+    fill, and weighted by it the bulbs the fit seeds and weighs moved (``gaslight2usd
+    bench --suite chain --method "truth HDR"`` and ``--method recursive``; figures in
+    docs/measurements.md)."""
     w = np.maximum(np.asarray(ratio, np.float64), 1e-12)
     total = np.bincount(lab, w, minlength=count)
     cx = np.bincount(lab, w * (xs + 0.5), minlength=count) / total

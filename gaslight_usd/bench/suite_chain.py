@@ -226,9 +226,13 @@ def irradiance_luminance(pano: np.ndarray, normals: np.ndarray) -> np.ndarray:
 def irradiance_psnr(pano: np.ndarray, truth: np.ndarray) -> float:
     """PSNR of the irradiance luminance over 64 normals, the truth's largest as the peak."""
     normals = fibonacci_normals()
+    return _against_truth(irradiance_luminance(pano, normals), truth, normals)
+
+
+def _against_truth(found: np.ndarray, truth: np.ndarray, normals: np.ndarray) -> float:
+    """PSNR of irradiance luminances ``found`` on ``normals`` against the truth panorama's."""
     e_true = irradiance_luminance(truth, normals)
-    e_pred = irradiance_luminance(pano, normals)
-    return psnr_from_mse(float(np.mean((e_pred - e_true) ** 2)), peak=float(e_true.max()))
+    return psnr_from_mse(float(np.mean((found - e_true) ** 2)), peak=float(e_true.max()))
 
 
 def cone_power(pano: np.ndarray, axis: np.ndarray, half_angle: float) -> float:
@@ -543,9 +547,7 @@ def rig_irradiance_psnr(rig, truth: np.ndarray, position: np.ndarray, space: str
     rgb = rig_irradiance(rig, position, normals)
     if space != TRUTH_SPACE:
         rgb = convert(rgb.astype(np.float32), space, TRUTH_SPACE).astype(np.float64)
-    found = (rgb * scale) @ np.array(REC709_Y)
-    e_true = irradiance_luminance(truth, normals)
-    return psnr_from_mse(float(np.mean((found - e_true) ** 2)), peak=float(e_true.max()))
+    return _against_truth((rgb * scale) @ np.array(REC709_Y), truth, normals)
 
 
 def probe_rows(scene: SplatScene, folder: Path, scale: float, relight: bool,

@@ -32,12 +32,11 @@ handful of points and draws the walls off their places (``gaslight2usd bench --s
 SPARSE_POINTS_PER_VIEW = 10
 """Fewer points than this per view and the views are triangulated again, despeckled
 (:data:`DESPECKLE`) and with matches the poses guide (:mod:`gaslight_usd.poses.guided`).
-The chain bench's speckled shaded-lamp room gave 2 per view (38 from 18 views), 20 with
-both; its other rooms 22-30 and the example 48 without them. Where the plain start is
-dense the second pass costs: its extra points include faint false ones in front of the
-windows that the fit keeps as a veil, and from true HDR views, from photos with darker
-frames and on the example's photos its fits lost 2-10 dB (session 48's measurements);
-where it is sparse it is what draws the walls where they are."""
+A speckled room falls far under it and a textured one far over it. Where the plain start
+is dense the second pass costs: its extra points include faint false ones in front of
+the windows, which the fit keeps as a veil over them; where it is sparse it is what draws
+the walls where they are (``gaslight2usd bench --suite chain --method "truth HDR"``, and
+with ``recursive + extra dark frames``; figures in ``docs/measurements.md``)."""
 MID_GREY = 0.18
 """Where the median luminance of all views lands after the shared exposure."""
 
