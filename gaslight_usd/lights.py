@@ -58,7 +58,10 @@ window, not the wall the lamp lights. The rule, in the paper's own use
    one light smeared in depth, each part placed at the nearest strong part's
    distance (:data:`SMEAR_POWER_SHARE`, :func:`group_clusters`).
 5. Emitter clusters closer than their own sizes plus :data:`GROUP_SHARE` of
-   the captured space's median depth are **grouped into lights**:
+   the captured space's median depth are **grouped into lights**, except that the
+   clusters of a light the photos outlined (step 3) join others only where they
+   touch (:func:`group_clusters`: a bare bulb at its fill, grouped with the floor it
+   lights, was a broad light off the bulb):
    position (power-weighted centre), size (principal half-extents), power
    (radiance x projected area, summed), colour, and where the power came from.
 6. **The photos have the last word** when the fit recorded where they saw light over
@@ -492,8 +495,8 @@ def onto_surfaces_each(positions: np.ndarray, idx: np.ndarray, viewpoint: np.nda
 
 
 def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.ndarray,
-                   power: np.ndarray, viewpoint: np.ndarray, gap: float
-                   ) -> tuple[np.ndarray, np.ndarray]:
+                   power: np.ndarray, viewpoint: np.ndarray, gap: float,
+                   outlined: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Light label (K,) of each emitter cluster and the distance (K,) each is seen at.
 
     Clusters are linked when their reaches (spread plus ``gap``) touch, or when their
@@ -502,6 +505,16 @@ def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.
     cluster lying behind such one by more than its own reach, one holding at least
     :data:`SMEAR_POWER_SHARE` of its ``power`` (K,), is seen at the nearest such one's
     distance.
+
+    A cluster within :data:`OUTLINE_REACH` sizes of a light the photos outlined
+    (``outlined`` (L, 4), :func:`outlined_lights`) is that light's, and so is a cluster
+    within the gap of one of those and no broader than that light; the clusters of one
+    outlined light are one light, and they join any other cluster only where their
+    reaches touch, without the gap and the smear. A bare bulb at the uplift's fill is
+    no brighter than the floor it lights, and the gap or the smear from the cameras'
+    middle joined the two into one broad light half a metre off the bulb, too wide to
+    weigh (``gaslight2usd bench --suite chain --scene bulb:11``; docs/measurements.md,
+    sessions 48-49); the photos' outlines say where the bulb ends.
     """
     centres = np.array([positions[i].mean(0) for i in clusters])
     reach = np.array([(np.linalg.norm(positions[i] - c, axis=1) + LINK_SIGMAS * sigma[i]).max()
@@ -511,13 +524,35 @@ def group_clusters(positions: np.ndarray, clusters: list[np.ndarray], sigma: np.
     dirs = rel / dist[:, None]
     ang = np.arctan2(reach, dist)  # angular radius as seen from the viewpoint
     between = np.arccos(np.clip(dirs @ dirs.T, -1.0, 1.0))
-    near = np.linalg.norm(centres[:, None] - centres[None], axis=2) <= (
-        reach[:, None] + reach[None] + 2.0 * gap)
+    apart = np.linalg.norm(centres[:, None] - centres[None], axis=2)
+    touch = apart <= reach[:, None] + reach[None]
+    near = apart <= reach[:, None] + reach[None] + 2.0 * gap
     smear = between <= ang[:, None] + ang[None] + np.radians(SMEAR_DEG)
+    owner = _outlined_owner(centres, outlined)
+    if (owner >= 0).any():
+        # a cluster near an outlined light's and no broader than that light is a fragment
+        # of it (a bulb's splat a little off its outline)
+        size = np.where(owner >= 0, OUTLINE_REACH * outlined[np.maximum(owner, 0), 3], 0.0)
+        part = near & (owner[:, None] < 0) & (owner[None] >= 0) & (reach[:, None] <= size[None])
+        of = np.where(part, apart, np.inf).argmin(axis=1)
+        owner = np.where(part.any(axis=1), owner[of], owner)
+    same = (owner[:, None] == owner[None]) & (owner[:, None] >= 0)
+    other = owner[:, None] != owner[None]
+    near = np.where(other, touch, near | same)
+    smear &= ~other
     behind = smear & (dist[None] < dist[:, None] - reach[:, None]) & (
         power[None] >= SMEAR_POWER_SHARE * power[:, None])
     seen_at = np.where(behind, dist[None], dist[:, None]).min(axis=1)
     return connected_components(coo_matrix(near | smear), directed=False)[1], seen_at
+
+
+def _outlined_owner(centres: np.ndarray, outlined: np.ndarray | None) -> np.ndarray:
+    """(K,) index of the outlined light (``outlined`` (L, 4)) whose :data:`OUTLINE_REACH`
+    sizes hold each of ``centres`` (K, 3) (the nearest in sizes), -1 for none."""
+    if outlined is None or not len(outlined):
+        return np.full(len(centres), -1)
+    sizes = np.linalg.norm(centres[:, None] - outlined[None, :, :3], axis=2) / outlined[None, :, 3]
+    return np.where(sizes.min(axis=1) <= OUTLINE_REACH, sizes.argmin(axis=1), -1)
 
 
 def _weighed_lights(metadata: Mapping[str, Any]) -> list[tuple[np.ndarray, float, Mapping]]:
@@ -664,7 +699,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
                            {**counts, "emitters": 0})
     cluster_power = np.array([(radiance[i] * area[i]).sum() for i in emitting])
     groups, seen_at = group_clusters(placed, emitting, sigma, cluster_power, viewpoint,
-                                     GROUP_SHARE * space.median_depth() / 2.0)
+                                     GROUP_SHARE * space.median_depth() / 2.0, outlined)
     evidence = placed.copy()  # moves the surfaces and outlines support, not the smear's
     for k, idx in enumerate(emitting):
         dist = float(np.linalg.norm(placed[idx].mean(0) - viewpoint))

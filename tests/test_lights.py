@@ -332,6 +332,36 @@ def test_a_light_smeared_along_the_rays_sits_at_its_nearest_strong_part():
     np.testing.assert_allclose(seen_at, [2.0, 3.0, 3.0], atol=0.01)
 
 
+def test_an_outlined_bulb_is_not_grouped_with_the_lit_patch_under_it():
+    """A bare bulb at its fill (two clusters and a one-splat fragment 0.12 m off) 0.75 m
+    over the broad floor patch it lights, the patch behind it as the cameras' middle sees
+    it. The gap and the smear join them into one light; with the photos' outline of the
+    bulb the bulb is one light of its own, its fragment with it, and the patch another."""
+    rng = np.random.default_rng(3)
+    bulb = np.array([1.2, 0.95, 1.1])
+    viewpoint = np.array([0.0, 1.5, 0.0])
+    patch = np.column_stack([rng.uniform(0.85, 1.75, 40), np.zeros(40),
+                             rng.uniform(0.9, 1.7, 40)])
+    pos = np.concatenate([bulb + rng.normal(0, 0.015, (8, 3)),
+                          bulb + [0.03, -0.02, 0.0] + rng.normal(0, 0.01, (3, 3)),
+                          (bulb + [0.0, -0.12, 0.0])[None], patch])
+    clusters = [np.arange(8), np.arange(8, 11), np.array([11]), np.arange(12, 52)]
+    sigma = np.concatenate([np.full(12, 0.01), np.full(40, 0.08)])
+    power = np.array([0.02, 0.01, 0.001, 0.5])
+    gap = 0.2
+    labels, _ = lights.group_clusters(pos, clusters, sigma, power, viewpoint, gap)
+    assert len(set(labels.tolist())) == 1
+    outline = np.array([[*bulb, 0.05]])
+    labels, _ = lights.group_clusters(pos, clusters, sigma, power, viewpoint, gap, outline)
+    assert labels[0] == labels[1] == labels[2] != labels[3]
+    # the patch's own fragments still join it across the gap
+    pos2 = np.concatenate([pos, [[1.95, 0.0, 1.3]]])
+    clusters2 = [*clusters, np.array([52])]
+    labels, _ = lights.group_clusters(pos2, clusters2, np.append(sigma, 0.08),
+                                      np.append(power, 0.01), viewpoint, gap, outline)
+    assert labels[4] == labels[3] != labels[0]
+
+
 def test_a_probe_within_a_lights_reach_is_warned_about(tmp_path, capsys):
     """0.4 m in front of the window (under one of its radii) the HDRI is not to be trusted:
     a fit leaves a flat light's splats floating there (issue 16); the room's middle and a
