@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from .flat_outlines import Outline
+
 ON_PLANE_SHARE = 0.05
 """A panel's centre lies within this share of the captured space's median depth of its
 plane: a window or panel the fit found sits in its plane to a few centimetres, a hanging
@@ -97,12 +99,14 @@ def _spread(extent: np.ndarray, axes: np.ndarray, direction: np.ndarray) -> floa
 
 
 def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
-             planes: Sequence[tuple[np.ndarray, float]], median_depth: float
-             ) -> Panel | None:
+             planes: Sequence[tuple[np.ndarray, float]], median_depth: float,
+             outlines: Sequence[Outline] = ()) -> Panel | None:
     """The light's rectangle in a room plane, or None when it is not a flat panel there.
 
     ``position``, ``extent`` and ``axes``: the light's centre, half-sizes and their
-    directions (rows), as :class:`gaslight_usd.lights.Light` holds them."""
+    directions (rows), as :class:`gaslight_usd.lights.Light` holds them. ``outlines``:
+    the rectangles the views saw lit on the room's planes (:mod:`gaslight_usd.flat_outlines`);
+    one on the light's plane that holds its centre is its rectangle, flat or not."""
     if not planes or not np.isfinite(median_depth) or median_depth <= 0:
         return None
     position = np.asarray(position, np.float64)
@@ -112,6 +116,13 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
     if abs(offsets[k]) > ON_PLANE_SHARE * median_depth:
         return None
     normal = planes[k][0]
+    outline = _holding_outline(position, normal, planes[k][1], outlines,
+                               ON_PLANE_SHARE * median_depth)
+    if outline is not None:
+        return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
+                     normal=normal.copy(), u=outline.u.copy(),
+                     v=np.cross(outline.u, normal), half_size=outline.half_size.copy(),
+                     plane_offset=float(offsets[k]))
     across = [m for m, _ in planes if abs(m @ normal) < SQUARE_COS]
     if across:
         side = min(across, key=lambda m: abs(m @ normal))
@@ -129,6 +140,17 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
     centre = position - offsets[k] * normal + NUDGE_SHARE * median_depth * normal
     return Panel(centre=centre, normal=normal.copy(), u=u, v=v, half_size=half,
                  plane_offset=float(offsets[k]))
+
+
+def _holding_outline(position: np.ndarray, normal: np.ndarray, offset: float,
+                     outlines: Sequence[Outline], tolerance: float) -> Outline | None:
+    """The outline with the most lit cells on the plane (``normal``, ``offset``) that
+    holds ``position`` within ``tolerance``; None when none does."""
+    held = [o for o in outlines
+            if float(o.normal @ normal) > 1.0 - SQUARE_COS ** 2 / 2
+            and abs(float(o.normal @ o.centre) - offset) <= tolerance
+            and o.holds(position, tolerance)]
+    return max(held, key=lambda o: o.cells) if held else None
 
 
 def solid_angle(corners: np.ndarray, point: np.ndarray) -> float:

@@ -39,6 +39,7 @@ from ..cameras import PinholeCamera
 from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
+from ..flat_outlines import Outline, lit_masks, plane_outlines
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
@@ -609,6 +610,15 @@ class Trainer:
                             self.y_weights.cpu().numpy(),
                             self._measured_views(range(len(self.data.images)))).as_dict()
 
+    def _flat_outlines(self) -> list[Outline]:
+        """The rectangles the views clipped on the room's planes (windows, panels:
+        :mod:`gaslight_usd.flat_outlines`), from every view."""
+        if not self.room_planes:
+            return []
+        masks = lit_masks([self.data.floor(i) for i in range(len(self.data.images))])
+        return plane_outlines([(p.normal, p.offset) for p in self.room_planes],
+                              self.data.cameras, masks)
+
     def _measured_views(self, views) -> list[bool]:
         """Per view of ``views``: it clipped nothing (its light regions are measured)."""
         floors = [self.data.floor(i) for i in views]
@@ -807,7 +817,8 @@ class Trainer:
                                                   for c in self.data.cameras]},
                           "light_sightings": self._light_sightings(),
                           "light_seeds": [seed.as_dict() for seed in self._light_seeds()]
-                          + [light.as_dict() for light in surfaced.placed]}
+                          + [light.as_dict() for light in surfaced.placed],
+                          "flat_outlines": [o.as_dict() for o in self._flat_outlines()]}
         lights: list[LightPower] = []
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):

@@ -42,6 +42,7 @@ from pxr import Gf, Sdf, Usd, UsdLux
 from .. import colour
 from ..cameras import latlong_directions, latlong_solid_angles
 from ..export_options import DOME_WIDTH, RIG_TOLERANCE
+from ..flat_outlines import outlines_from_metadata
 from ..hdri import write_latlong
 from ..light_shapes import Panel, panel_of, room_planes, solid_angle
 from ..splats import SplatScene
@@ -338,8 +339,9 @@ def build_rig(scene: SplatScene, probe=None, width: int = DOME_WIDTH,
         if search.lights:
             planes = room_planes(scene.metadata)
             depth = search.space.median_depth()
-            panels = [panel_of(light.position, light.extent, light.axes, planes, depth)
-                      for light in search.lights]
+            outlines = outlines_from_metadata(scene.metadata)
+            panels = [panel_of(light.position, light.extent, light.axes, planes, depth,
+                               outlines) for light in search.lights]
             radii = np.array([light.radius for light in search.lights])
             found = (np.array([panel.centre if panel is not None else
                                inside_position(search.space, light.position, r)

@@ -1,0 +1,186 @@
+"""Where the views saw light on the room's planes: the rectangles of windows and panels.
+
+A window's splats say little about its edges: a fit draws it with a few dozen blobs whose
+spread is not its size (from the chain bench's photos a 1.8 x 1.2 m window came out
+0.9 x 1.0 m, a 0.9 x 0.8 m one 0.6 x 0.4 m, or not flat enough to be a panel at all).
+The photos say it exactly: every photo that frames the window clipped the same
+rectangle of the wall. So each room plane (the fit's room box,
+:func:`gaslight_usd.fit.planes.room_box`) is cut into cells, each cell is looked up in
+every view that frames it from the plane's front, and a cell is **lit** where at least
+:data:`MIN_VIEWS` views frame it and at least :data:`LIT_SHARE` of them clipped there
+(views that clipped nothing do not count: :func:`lit_masks`). An object in front of the
+window in one view only takes its cells out where that view is most of those that frame
+them. The lit cells' connected regions, of at least :data:`MIN_CELLS` cells, are the
+plane's **outlines**: rectangles with sides along the room's other planes where one is
+square to this one (windows and panels are set square to their walls), bounding the
+region.
+
+The fit stores them in the splats' metadata (``flat_outlines``); the rig's panels take a
+light's rectangle from the outline that holds it (:func:`gaslight_usd.light_shapes.panel_of`).
+Measured by ``gaslight2usd bench --suite chain`` (``rig_irradiance_psnr``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+
+from .cameras import PinholeCamera
+
+CELL_SHARE = 0.01
+"""A cell's side, as a share of the cameras' median distance to the plane."""
+MAX_CELLS = 400
+"""At most this many cells along a side of a plane's grid (the cell grows instead)."""
+SPAN_SHARE = 2.0
+"""The grid reaches this many median camera distances past the cameras' own span."""
+MIN_VIEWS = 2
+"""A cell is judged only where at least this many views frame it from the front."""
+LIT_SHARE = 0.75
+"""...and lit where at least this share of them saw light there."""
+MIN_CELLS = 12
+"""Lit regions of fewer cells are no outline (a speck, a lit edge)."""
+MAX_OUTLINES = 32
+"""Kept, the most lit cells first: a speckled set's photos clip hundreds of specks (the
+chain bench's shaded-lamp room: 380-630 regions), and the splats' metadata carries them."""
+SQUARE_COS = 0.2
+"""Another plane whose normal is within this |cos| of square to this one sets the sides."""
+
+
+@dataclass
+class Outline:
+    """A lit rectangle on a room plane: ``centre + s * half_size[0] * u + t * half_size[1]
+    * v`` for s, t in [-1, 1]; ``normal`` towards the cameras."""
+
+    centre: np.ndarray
+    normal: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    half_size: np.ndarray
+    cells: int
+    """Lit cells in the region (the rectangle may hold unlit corners)."""
+
+    def holds(self, point: np.ndarray, margin: float = 0.0) -> bool:
+        """Whether ``point``, put on the outline's plane, lies within the rectangle
+        grown by ``margin``."""
+        rel = np.asarray(point, np.float64) - self.centre
+        return bool(abs(rel @ self.u) <= self.half_size[0] + margin
+                    and abs(rel @ self.v) <= self.half_size[1] + margin)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"centre": [round(float(x), 5) for x in self.centre],
+                "normal": [round(float(x), 5) for x in self.normal],
+                "u": [round(float(x), 5) for x in self.u],
+                "v": [round(float(x), 5) for x in self.v],
+                "half_size": [round(float(x), 5) for x in self.half_size],
+                "cells": int(self.cells)}
+
+    @classmethod
+    def from_dict(cls, entry: Mapping[str, Any]) -> Outline | None:
+        """The outline an :meth:`as_dict` wrote; None for a malformed entry."""
+        try:
+            vecs = [np.asarray(entry[k], np.float64).reshape(3)
+                    for k in ("centre", "normal", "u", "v")]
+            half = np.asarray(entry["half_size"], np.float64).reshape(2)
+            cells = int(entry.get("cells", 0))
+        except (KeyError, TypeError, ValueError):
+            return None
+        if not all(np.all(np.isfinite(x)) for x in (*vecs, half)) or half.min() <= 0:
+            return None
+        return cls(*vecs, half_size=half, cells=cells)
+
+
+def outlines_from_metadata(metadata: Mapping[str, Any]) -> list[Outline]:
+    """The outlines the fit stored (``flat_outlines``; none for older files)."""
+    out = [Outline.from_dict(e) for e in metadata.get("flat_outlines") or []
+           if isinstance(e, Mapping)]
+    return [o for o in out if o is not None]
+
+
+def side_axis(normal: np.ndarray, others: Sequence[np.ndarray]) -> np.ndarray:
+    """A unit direction in the plane of ``normal``: along the plane square to it in
+    ``others`` (normals) that is most nearly so, else the in-plane direction nearest
+    the world's x axis, then z."""
+    normal = np.asarray(normal, np.float64)
+    across = [np.asarray(m, np.float64) for m in others if abs(np.asarray(m) @ normal) < SQUARE_COS]
+    candidates = [min(across, key=lambda m: abs(m @ normal))] if across else []
+    candidates += [np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])]
+    for side in candidates:
+        u = side - (side @ normal) * normal
+        if np.linalg.norm(u) > 1e-3:
+            return u / np.linalg.norm(u)
+    return np.array([0.0, 1.0, 0.0])
+
+
+def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence[PinholeCamera],
+                   lit: Sequence[np.ndarray | None]) -> list[Outline]:
+    """The lit rectangles (module docstring) on each of ``planes`` (unit normal towards
+    the cameras, offset), from ``cameras`` and their ``lit`` masks (H, W) bool at any
+    size (None: the view does not count, :func:`lit_masks`)."""
+    if not planes or not cameras:
+        return []
+    centres = np.array([c.center for c in cameras], np.float64)
+    out: list[Outline] = []
+    normals = [np.asarray(n, np.float64) for n, _ in planes]
+    for k, (normal, offset) in enumerate(planes):
+        normal = np.asarray(normal, np.float64)
+        dist = centres @ normal - offset
+        front = dist > 0
+        if front.sum() < MIN_VIEWS:
+            continue
+        u = side_axis(normal, normals[:k] + normals[k + 1:])
+        v = np.cross(normal, u)
+        reach = SPAN_SHARE * float(np.median(dist[front]))
+        cu, cv = centres[front] @ u, centres[front] @ v
+        lo = np.array([cu.min() - reach, cv.min() - reach])
+        hi = np.array([cu.max() + reach, cv.max() + reach])
+        cell = max(CELL_SHARE * float(np.median(dist[front])), float((hi - lo).max()) / MAX_CELLS)
+        nu, nv = (np.ceil((hi - lo) / cell)).astype(int)
+        gu = lo[0] + (np.arange(nu) + 0.5) * cell
+        gv = lo[1] + (np.arange(nv) + 0.5) * cell
+        uu, vv = np.meshgrid(gu, gv, indexing="ij")
+        points = (offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v)
+        framed = np.zeros(len(points), np.int32)
+        seen = np.zeros(len(points), np.int32)
+        for cam, mask, ahead in zip(cameras, lit, front, strict=True):
+            if not ahead or mask is None:
+                continue
+            uv, z = cam.project(points)
+            h, w = mask.shape[:2]
+            uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
+            x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
+            y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
+            inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            framed += inside
+            seen[inside] += mask[y[inside], x[inside]].astype(np.int32)
+        good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
+        labels, count = ndimage.label(good.reshape(nu, nv), structure=np.ones((3, 3)))
+        if not count:
+            continue
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        for lab in np.flatnonzero(sizes >= MIN_CELLS):
+            if lab == 0:
+                continue
+            iu, iv = np.nonzero(labels == lab)
+            a0, a1 = gu[iu.min()] - cell / 2, gu[iu.max()] + cell / 2
+            b0, b1 = gv[iv.min()] - cell / 2, gv[iv.max()] + cell / 2
+            centre = offset * normal + (a0 + a1) / 2 * u + (b0 + b1) / 2 * v
+            out.append(Outline(centre=centre, normal=normal.copy(), u=u.copy(), v=v.copy(),
+                               half_size=np.array([(a1 - a0) / 2, (b1 - b0) / 2]),
+                               cells=int(sizes[lab])))
+    return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
+
+
+def lit_masks(floors: Sequence[np.ndarray | None]) -> list[np.ndarray | None]:
+    """Per view where it saw light over what it could record: its clipped pixels (a clip
+    floor over 0); None for a view that clipped nothing.
+
+    A view that clipped nothing says nothing here: its light has no edge but the one a
+    threshold would draw, and over its white (what the sightings use) it outlines every
+    lit wall with the window (on the chain bench's true HDR views the rig's panels grew
+    over whole ceilings, ``docs/measurements.md``, session 49)."""
+    return [np.asarray(f) > 0 if f is not None and bool(np.any(np.asarray(f) > 0)) else None
+            for f in floors]

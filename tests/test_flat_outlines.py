@@ -1,0 +1,120 @@
+"""The rectangles the views saw lit on the room's planes, and the rig's panels from them.
+
+A room 5 x 3 x 4 m (floor y = 0) with a 1.2 x 1.0 m window in its +x wall; four
+cameras look at it from inside. Each view's lit mask is exactly where its rays meet
+the window, as a photo that clipped the window shows it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gaslight_usd.cameras import PinholeCamera
+from gaslight_usd.flat_outlines import (
+    Outline,
+    lit_masks,
+    outlines_from_metadata,
+    plane_outlines,
+)
+from gaslight_usd.light_shapes import panel_of
+
+WINDOW_CENTRE = np.array([2.5, 1.6, 0.2])
+HALF = np.array([0.6, 0.5])  # along z, along y
+# unit normal towards the cameras, offset: the +x wall, the floor, the side walls
+PLANES = [(np.array([-1.0, 0.0, 0.0]), -2.5), (np.array([0.0, 1.0, 0.0]), 0.0),
+          (np.array([0.0, 0.0, 1.0]), -2.0), (np.array([0.0, 0.0, -1.0]), -2.0)]
+
+
+def look_at(centre, target, width=160, height=120, focal=120.0) -> PinholeCamera:
+    centre = np.asarray(centre, float)
+    z = np.asarray(target, float) - centre
+    z /= np.linalg.norm(z)
+    x = np.cross(z, [0.0, -1.0, 0.0])
+    x /= np.linalg.norm(x)
+    rot = np.stack([x, np.cross(z, x), z])
+    return PinholeCamera(width, height, focal, focal, width / 2, height / 2, R=rot,
+                         t=-rot @ centre)
+
+
+def window_mask(cam: PinholeCamera) -> np.ndarray:
+    """Where ``cam``'s pixel rays meet the window."""
+    dirs = cam.ray_directions()
+    t = (2.5 - cam.center[0]) / np.where(dirs[..., 0] > 1e-6, dirs[..., 0], np.nan)
+    hit = cam.center + dirs * t[..., None]
+    with np.errstate(invalid="ignore"):
+        return ((np.abs(hit[..., 2] - WINDOW_CENTRE[2]) <= HALF[0])
+                & (np.abs(hit[..., 1] - WINDOW_CENTRE[1]) <= HALF[1]))
+
+
+def cameras() -> list[PinholeCamera]:
+    return [look_at(c, WINDOW_CENTRE) for c in
+            ([-1.0, 1.5, 0.0], [-0.5, 1.2, 1.2], [0.0, 1.8, -1.0], [-1.8, 1.4, -0.4])]
+
+
+def window_outline(outlines: list[Outline]) -> Outline:
+    return max((o for o in outlines if o.normal[0] < -0.9), key=lambda o: o.cells)
+
+
+def half_along_z_y(outline: Outline) -> np.ndarray:
+    """The outline's half-sizes along z and y, whichever of its sides runs along which."""
+    return outline.half_size if abs(outline.u[2]) > 0.5 else outline.half_size[::-1]
+
+
+def test_the_views_lit_rectangle_on_the_wall_is_the_window():
+    cams = cameras()
+    outlines = plane_outlines(PLANES, cams, [window_mask(c) for c in cams])
+    window = window_outline(outlines)
+    np.testing.assert_allclose(window.centre, WINDOW_CENTRE, atol=0.04)
+    # sides along the room's planes square to the wall (the side walls, the floor)
+    assert max(abs(window.u[1]), abs(window.u[2])) > 1.0 - 1e-6
+    np.testing.assert_allclose(half_along_z_y(window), HALF, atol=0.05)
+    assert not [o for o in outlines if o.normal[0] > -0.9]  # nothing lit elsewhere
+
+
+def test_an_object_in_front_of_the_window_in_one_view_leaves_it_whole():
+    cams = cameras()
+    masks = [window_mask(c) for c in cams]
+    masks[0] = masks[0].copy()
+    rows, cols = np.nonzero(masks[0])
+    masks[0][rows.min():(rows.min() + rows.max()) // 2, :] = False  # its top half hidden
+    window = window_outline(plane_outlines(PLANES, cams, masks))
+    np.testing.assert_allclose(half_along_z_y(window), HALF, atol=0.05)
+
+
+def test_only_views_that_clipped_count():
+    """A view that clipped nothing (a darker frame, a true HDR view) neither frames nor
+    lights a cell: with two of the four views clipping, the window is still outlined;
+    with one, a cell has too few views to say."""
+    cams = cameras()
+    floors = [np.where(window_mask(c), 1.0, 0.0) for c in cams]
+    masks = lit_masks(floors[:2] + [None, np.zeros_like(floors[3])])
+    assert masks[2] is None and masks[3] is None
+    assert np.array_equal(masks[0], floors[0] > 0)
+    window = window_outline(plane_outlines(PLANES, cams, masks))
+    np.testing.assert_allclose(window.centre, WINDOW_CENTRE, atol=0.08)
+    assert plane_outlines(PLANES, cams, masks[:1] + [None] * 3) == []
+
+
+def test_a_light_the_outline_holds_takes_its_rectangle():
+    cams = cameras()
+    outlines = plane_outlines(PLANES, cams, [window_mask(c) for c in cams])
+    # a fit's window: a clump of splats 0.3 m across and round, not a flat panel
+    position, extent, axes = WINDOW_CENTRE + [-0.02, 0.05, 0.1], np.full(3, 0.15), np.eye(3)
+    assert panel_of(position, extent, axes, PLANES, 2.5) is None
+    panel = panel_of(position, extent, axes, PLANES, 2.5, outlines)
+    assert panel is not None
+    np.testing.assert_allclose(sorted(panel.half_size), sorted(HALF), atol=0.05)
+    np.testing.assert_allclose(np.cross(panel.u, panel.v), -panel.normal, atol=1e-9)
+    assert panel.centre[0] < 2.5  # nudged into the room
+    # a light elsewhere on the wall keeps its own shape
+    assert panel_of(position + [0.0, 0.0, 1.5], extent, axes, PLANES, 2.5, outlines) is None
+
+
+def test_outlines_round_trip_through_metadata():
+    cams = cameras()
+    outlines = plane_outlines(PLANES, cams, [window_mask(c) for c in cams])
+    meta = {"flat_outlines": [o.as_dict() for o in outlines] + [{"centre": [1, 2]}, "x"]}
+    back = outlines_from_metadata(meta)
+    assert len(back) == len(outlines)
+    np.testing.assert_allclose(back[0].centre, outlines[0].centre, atol=1e-4)
+    assert outlines_from_metadata({}) == []
