@@ -37,6 +37,11 @@ ON_PLANE_SHARE = 0.05
 """A panel's centre lies within this share of the captured space's median depth of its
 plane: a window or panel the fit found sits in its plane to a few centimetres, a hanging
 bulb a good share of the room's height away (docs/measurements.md, session 48)."""
+OUTLINED_OFF_SHARE = 0.35
+"""A light this far off a plane (share of the median depth) is that plane's panel where an
+outline there holds it (:func:`panel_of`): from the chain bench's photos the fit left a
+window's light 0.2-0.3 of the median depth in front of it in four fits of eighteen
+(``docs/measurements.md``, session 49)."""
 FLAT_RATIO = 0.75
 """A panel's spread off its plane is at most this share of its larger spread in it."""
 SQUARE_COS = 0.2
@@ -100,29 +105,37 @@ def _spread(extent: np.ndarray, axes: np.ndarray, direction: np.ndarray) -> floa
 
 def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
              planes: Sequence[tuple[np.ndarray, float]], median_depth: float,
-             outlines: Sequence[Outline] = ()) -> Panel | None:
+             outlines: Sequence[Outline] = (), compact: np.ndarray | None = None
+             ) -> Panel | None:
     """The light's rectangle in a room plane, or None when it is not a flat panel there.
 
     ``position``, ``extent`` and ``axes``: the light's centre, half-sizes and their
     directions (rows), as :class:`gaslight_usd.lights.Light` holds them. ``outlines``:
-    the rectangles the views saw lit on the room's planes (:mod:`gaslight_usd.flat_outlines`);
-    one on the light's plane that holds its centre is its rectangle, flat or not."""
+    the rectangles the views clipped on the room's planes (:mod:`gaslight_usd.flat_outlines`):
+    one on the light's plane that holds its centre is its rectangle, flat or not, and
+    holds it up to :data:`OUTLINED_OFF_SHARE` off the plane (a window's light the fit
+    left floating in front of it) unless the photos outlined a compact light there
+    (``compact`` (K, 4) centres and sizes, :func:`gaslight_usd.lights.outlined_lights`:
+    a lamp hanging in front of a window is a lamp)."""
     if not planes or not np.isfinite(median_depth) or median_depth <= 0:
         return None
     position = np.asarray(position, np.float64)
     extent, axes = np.asarray(extent, np.float64), np.asarray(axes, np.float64)
     offsets = np.array([normal @ position - offset for normal, offset in planes])
     k = int(np.argmin(np.abs(offsets)))
-    if abs(offsets[k]) > ON_PLANE_SHARE * median_depth:
-        return None
     normal = planes[k][0]
-    outline = _holding_outline(position, normal, planes[k][1], outlines,
-                               ON_PLANE_SHARE * median_depth)
-    if outline is not None:
-        return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
-                     normal=normal.copy(), u=outline.u.copy(),
-                     v=np.cross(outline.u, normal), half_size=outline.half_size.copy(),
-                     plane_offset=float(offsets[k]))
+    on_plane = abs(offsets[k]) <= ON_PLANE_SHARE * median_depth
+    if on_plane or (abs(offsets[k]) <= OUTLINED_OFF_SHARE * median_depth
+                    and not _near_compact(position, compact, ON_PLANE_SHARE * median_depth)):
+        outline = _holding_outline(position, normal, planes[k][1], outlines,
+                                   ON_PLANE_SHARE * median_depth)
+        if outline is not None:
+            return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
+                         normal=normal.copy(), u=outline.u.copy(),
+                         v=np.cross(outline.u, normal), half_size=outline.half_size.copy(),
+                         plane_offset=float(offsets[k]))
+    if not on_plane:
+        return None
     across = [m for m, _ in planes if abs(m @ normal) < SQUARE_COS]
     if across:
         side = min(across, key=lambda m: abs(m @ normal))
@@ -140,6 +153,16 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
     centre = position - offsets[k] * normal + NUDGE_SHARE * median_depth * normal
     return Panel(centre=centre, normal=normal.copy(), u=u, v=v, half_size=half,
                  plane_offset=float(offsets[k]))
+
+
+def _near_compact(position: np.ndarray, compact: np.ndarray | None, reach: float) -> bool:
+    """Whether ``position`` lies within twice a compact outlined light's size (or
+    ``reach``) of its centre."""
+    if compact is None or not len(compact):
+        return False
+    compact = np.asarray(compact, np.float64).reshape(-1, 4)
+    gap = np.linalg.norm(compact[:, :3] - position, axis=1)
+    return bool(np.any(gap <= np.maximum(2.0 * compact[:, 3], reach)))
 
 
 def _holding_outline(position: np.ndarray, normal: np.ndarray, offset: float,

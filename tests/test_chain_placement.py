@@ -80,3 +80,16 @@ def test_the_weighing_summary_names_each_emitters_clipped_light_and_false_ones()
     assert row["false_lights_weighed"] == 1
     assert weighing_summary([], [LAMP_LIGHT]) == {"weighing_lamp": "",
                                                   "false_lights_weighed": 0}
+
+
+def test_the_rigs_rectangle_is_scored_against_the_true_window():
+    """The room's window, drawn by its splats, is a panel in the fit's +x wall; its
+    rectangle against the true one, and against one moved off it."""
+    scene, _ = room_scene()
+    scene.metadata["fit_metrics"]["room_box"] = [{"normal": [-1.0, 0.0, 0.0], "offset": -2.5},
+                                                 {"normal": [0.0, 1.0, 0.0], "offset": 0.0}]
+    row = light_placement(scene, [LAMP_LIGHT, WINDOW_LIGHT])
+    assert "rect_iou_lamp" not in row
+    assert row["rect_iou_window"] > 0.5
+    far = {**WINDOW_LIGHT, "corners": (np.array(WINDOW_LIGHT["corners"]) + [0, 0, 3.0]).tolist()}
+    assert light_placement(scene, [LAMP_LIGHT, far])["rect_iou_window"] == 0.0

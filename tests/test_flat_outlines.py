@@ -110,6 +110,21 @@ def test_a_light_the_outline_holds_takes_its_rectangle():
     assert panel_of(position + [0.0, 0.0, 1.5], extent, axes, PLANES, 2.5, outlines) is None
 
 
+def test_a_window_light_floating_in_front_of_it_is_the_window_but_a_lamp_there_is_not():
+    """The fit left the window's light 0.6 m into the room, in front of the window: the
+    outline puts it back on the wall; a light the photos outlined as a compact lamp at
+    that place stays a lamp, and so does one twice as far out."""
+    cams = cameras()
+    outlines = plane_outlines(PLANES, cams, [window_mask(c) for c in cams])
+    floating, extent, axes = WINDOW_CENTRE + [-0.6, 0.0, 0.0], np.full(3, 0.15), np.eye(3)
+    panel = panel_of(floating, extent, axes, PLANES, 2.5, outlines)
+    assert panel is not None and abs(panel.centre[0] - 2.5) < 0.05
+    lamp = np.array([[*floating, 0.05]])
+    assert panel_of(floating, extent, axes, PLANES, 2.5, outlines, lamp) is None
+    assert panel_of(WINDOW_CENTRE + [-1.2, 0.0, 0.0], extent, axes, PLANES, 2.5,
+                    outlines) is None
+
+
 def test_outlines_round_trip_through_metadata():
     cams = cameras()
     outlines = plane_outlines(PLANES, cams, [window_mask(c) for c in cams])

@@ -50,8 +50,9 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
 * ``inside_alpha`` -- the opacity the fit's splats lay on the probe point itself: a probe
   among splats floating in the room sees them from inside (what ``hdri`` warns about
   over :data:`gaslight_usd.probe_check.INSIDE_ALPHA`);
-* ``light_dist_<light>``, ``lights_found``, ``stray_light_share`` -- where the lights
-  the export would write are (:func:`light_placement`), the same on each probe's row;
+* ``light_dist_<light>``, ``lights_found``, ``stray_light_share``, ``rect_iou_<light>``
+  -- where the lights the export would write are and how well its rectangles fit the
+  windows and panels (:func:`light_placement`), the same on each probe's row;
   ``light_spread_<light>``, ``floating_share`` -- where their splats are
   (:func:`emitter_spread`);
 * ``weighing_<light>``, ``false_lights_weighed`` -- what the fit decided about the
@@ -95,8 +96,10 @@ from ..colour import REC709_Y, convert
 from ..errors import GaslightError
 from ..evaluation.metrics import psnr_from_mse, pu21_psnr_peak
 from ..fit import fit_splats, load_fit_data, preset
+from ..flat_outlines import outlines_from_metadata
 from ..imageio import read_image
-from ..lights import search_lights
+from ..light_shapes import Panel, panel_of, room_planes
+from ..lights import outlined_lights, search_lights
 from ..locate import example_room, find_data
 from ..probe_check import inside_alpha, unseen_angles
 from ..render.envmap import render_latlong
@@ -282,7 +285,10 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]], search=None
     * ``light_dist_<name>`` -- metres from each true emitter to the nearest found light
       (its power-weighted centre), minus that light's radius (0 when it covers it);
     * ``stray_light_share`` -- the share of the found lights' power more than 0.3 m from
-      every true emitter (floating or smeared bright splats).
+      every true emitter (floating or smeared bright splats);
+    * ``rect_iou_<name>`` -- for each true rectangle (a window, a panel), the overlap
+      (intersection over union) of the best of the rig's rectangles
+      (:func:`gaslight_usd.light_shapes.panel_of`) with it, 0 where the rig has none.
     """
     search = search if search is not None else search_lights(scene)
     found = search.lights
@@ -299,7 +305,36 @@ def light_placement(scene: SplatScene, lights: list[dict[str, Any]], search=None
     power = np.array([float(f.power.sum()) for f in found])
     stray = np.maximum(dists.min(axis=0) - radius, 0.0) > 0.3
     row["stray_light_share"] = round(float(power[stray].sum() / max(power.sum(), 1e-30)), 3)
+    planes, outlines = room_planes(scene.metadata), outlines_from_metadata(scene.metadata)
+    depth = search.space.median_depth()
+    compact = outlined_lights(scene.metadata)
+    panels = [p for p in (panel_of(f.position, f.extent, f.axes, planes, depth, outlines,
+                                   compact) for f in found) if p is not None]
+    for li in lights:
+        if li.get("kind") != "sphere" and "corners" in li:
+            corners = np.asarray(li["corners"], np.float64)
+            row[f"rect_iou_{li['name']}"] = round(max(
+                (rect_iou(p, corners) for p in panels), default=0.0), 3)
     return row
+
+
+def rect_iou(panel: Panel, corners: np.ndarray, samples: int = 64) -> float:
+    """Intersection over union of a rig rectangle and a true one (``corners`` (4, 3), in
+    order round it), by sampling the true one; 0 where their planes are over 0.1 m
+    apart or cross."""
+    corners = np.asarray(corners, np.float64)
+    side_a, side_b = corners[1] - corners[0], corners[3] - corners[0]
+    true_area = float(np.linalg.norm(np.cross(side_a, side_b)))
+    if abs(float(np.cross(side_a, side_b) @ panel.normal)) < 0.9 * true_area:
+        return 0.0
+    g = (np.arange(samples) + 0.5) / samples
+    pts = (corners[0] + g[:, None, None] * side_a + g[None, :, None] * side_b).reshape(-1, 3)
+    rel = pts - panel.centre
+    inside = ((np.abs(rel @ panel.u) <= panel.half_size[0])
+              & (np.abs(rel @ panel.v) <= panel.half_size[1])
+              & (np.abs(rel @ panel.normal) <= 0.1))
+    inter = float(inside.mean()) * true_area
+    return inter / max(panel.area + true_area - inter, 1e-12)
 
 
 WALL_NEAR_M = 0.5

@@ -321,7 +321,7 @@ def build_rig(scene: SplatScene, probe=None, width: int = DOME_WIDTH,
     ``search``: a :class:`gaslight_usd.lights.LightSearch` of ``scene`` (made here
     when None); ``threshold``: use the old radiance-above-threshold rule instead.
     """
-    from ..lights import search_lights
+    from ..lights import outlined_lights, search_lights
     from ..probe import default_probe
     from ..render.envmap import render_latlong
 
@@ -340,8 +340,9 @@ def build_rig(scene: SplatScene, probe=None, width: int = DOME_WIDTH,
             planes = room_planes(scene.metadata)
             depth = search.space.median_depth()
             outlines = outlines_from_metadata(scene.metadata)
+            compact = outlined_lights(scene.metadata)
             panels = [panel_of(light.position, light.extent, light.axes, planes, depth,
-                               outlines) for light in search.lights]
+                               outlines, compact) for light in search.lights]
             radii = np.array([light.radius for light in search.lights])
             found = (np.array([panel.centre if panel is not None else
                                inside_position(search.space, light.position, r)
