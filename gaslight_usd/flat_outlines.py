@@ -3,17 +3,16 @@
 A window's splats say little about its edges: a fit draws it with a few dozen blobs whose
 spread is not its size (from the chain bench's photos a 1.8 x 1.2 m window came out
 0.9 x 1.0 m, a 0.9 x 0.8 m one 0.6 x 0.4 m, or not flat enough to be a panel at all).
-The photos say it exactly: every photo that frames the window clipped the same
-rectangle of the wall. So each room plane (the fit's room box,
-:func:`gaslight_usd.fit.planes.room_box`) is cut into cells, each cell is looked up in
-every view that frames it from the plane's front, and a cell is **lit** where at least
-:data:`MIN_VIEWS` views frame it and at least :data:`LIT_SHARE` of them clipped there
-(views that clipped nothing do not count: :func:`lit_masks`). An object in front of the
-window in one view only takes its cells out where that view is most of those that frame
-them. The lit cells' connected regions, of at least :data:`MIN_CELLS` cells, are the
-plane's **outlines**: rectangles with sides along the room's other planes where one is
-square to this one (windows and panels are set square to their walls), bounding the
-region.
+The views say it exactly: every photo that frames the window clipped the same rectangle
+of the wall. So each room plane (the fit's room box, :func:`gaslight_usd.fit.planes.room_box`)
+is cut into cells, each cell is looked up in every view that frames it from the plane's
+front, and a cell is **lit** where at least :data:`MIN_VIEWS` views frame it and at least
+:data:`LIT_SHARE` of them saw a light there (a clipped pixel; in a view that clipped
+nothing, one many times its median: :func:`lit_masks`). An object in front of the window
+in one view only takes its cells out where that view is most of those that frame them.
+The lit cells' connected regions, of at least :data:`MIN_CELLS` cells, are the plane's
+**outlines**: rectangles with sides along the room's other planes where one is square to
+this one (windows and panels are set square to their walls), bounding the region.
 
 The fit stores them in the splats' metadata (``flat_outlines``); the rig's panels take a
 light's rectangle from the outline that holds it (:func:`gaslight_usd.light_shapes.panel_of`).
@@ -43,6 +42,11 @@ LIT_SHARE = 0.75
 """...and lit where at least this share of them saw light there."""
 MIN_CELLS = 12
 """Lit regions of fewer cells are no outline (a speck, a lit edge)."""
+UNCLIPPED_RATIO = 8.0
+"""In a view that clipped nothing (a true HDR view, merged brackets, a darker frame) a
+light is what is over this many times the view's median luminance: the chain bench's
+windows are 15-50 times their rooms' walls, the light those windows and lamps throw on
+the walls a few times."""
 MAX_OUTLINES = 32
 """Kept, the most lit cells first: a speckled set's photos clip hundreds of specks (the
 chain bench's shaded-lamp room: 380-630 regions), and the splats' metadata carries them."""
@@ -119,7 +123,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
                    lit: Sequence[np.ndarray | None]) -> list[Outline]:
     """The lit rectangles (module docstring) on each of ``planes`` (unit normal towards
     the cameras, offset), from ``cameras`` and their ``lit`` masks (H, W) bool at any
-    size (None: the view does not count, :func:`lit_masks`)."""
+    size (None: the view does not count)."""
     if not planes or not cameras:
         return []
     centres = np.array([c.center for c in cameras], np.float64)
@@ -174,13 +178,20 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
     return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
 
 
-def lit_masks(floors: Sequence[np.ndarray | None]) -> list[np.ndarray | None]:
-    """Per view where it saw light over what it could record: its clipped pixels (a clip
-    floor over 0); None for a view that clipped nothing.
+def lit_masks(images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
+              weights: np.ndarray) -> list[np.ndarray]:
+    """Per view where it saw a light: its clipped pixels (a clip floor over 0), or, in a
+    view that clipped nothing, its pixels over :data:`UNCLIPPED_RATIO` times its median
+    luminance (``weights``).
 
-    A view that clipped nothing says nothing here: its light has no edge but the one a
-    threshold would draw, and over its white (what the sightings use) it outlines every
-    lit wall with the window (on the chain bench's true HDR views the rig's panels grew
-    over whole ceilings, ``docs/measurements.md``, session 49)."""
-    return [np.asarray(f) > 0 if f is not None and bool(np.any(np.asarray(f) > 0)) else None
-            for f in floors]
+    Not over the view's white, as the sightings read an unclipped view: a true HDR view's
+    white is any level, and over it the outlines took whole lit ceilings with the panels
+    (the rig lost 1.9 dB from true HDR views, ``docs/measurements.md``, session 49)."""
+    out = []
+    for image, floor in zip(images, floors, strict=True):
+        if floor is not None and bool(np.any(np.asarray(floor) > 0)):
+            out.append(np.asarray(floor) > 0)
+            continue
+        lum = np.asarray(image, np.float64) @ np.asarray(weights, np.float64)
+        out.append(lum > UNCLIPPED_RATIO * max(float(np.median(lum)), 1e-30))
+    return out

@@ -81,18 +81,23 @@ def test_an_object_in_front_of_the_window_in_one_view_leaves_it_whole():
     np.testing.assert_allclose(half_along_z_y(window), HALF, atol=0.05)
 
 
-def test_only_views_that_clipped_count():
-    """A view that clipped nothing (a darker frame, a true HDR view) neither frames nor
-    lights a cell: with two of the four views clipping, the window is still outlined;
-    with one, a cell has too few views to say."""
+def test_views_that_clipped_nothing_see_a_light_over_many_times_their_median():
+    """True HDR views: the window 10 times the walls, a lit wall patch 3 times; the
+    window is outlined, the patch is not. Photos: their clipped pixels."""
     cams = cameras()
-    floors = [np.where(window_mask(c), 1.0, 0.0) for c in cams]
-    masks = lit_masks(floors[:2] + [None, np.zeros_like(floors[3])])
-    assert masks[2] is None and masks[3] is None
-    assert np.array_equal(masks[0], floors[0] > 0)
+    weights = np.array([0.2126, 0.7152, 0.0722])
+    images = []
+    for cam in cams:
+        lum = np.where(window_mask(cam), 10.0, 1.0)
+        lum[:, :20] = 3.0  # a lit patch of wall at each view's left edge
+        images.append(np.repeat(lum[..., None], 3, axis=2).astype(np.float32))
+    masks = lit_masks(images, [None] * len(cams), weights)
+    assert all(np.array_equal(m, window_mask(c)) for m, c in zip(masks, cams, strict=True))
     window = window_outline(plane_outlines(PLANES, cams, masks))
-    np.testing.assert_allclose(window.centre, WINDOW_CENTRE, atol=0.08)
-    assert plane_outlines(PLANES, cams, masks[:1] + [None] * 3) == []
+    np.testing.assert_allclose(half_along_z_y(window), HALF, atol=0.05)
+    floors = [np.where(window_mask(c), 1.0, 0.0) for c in cams]
+    clipped = lit_masks(images, floors, weights)
+    assert all(np.array_equal(m, f > 0) for m, f in zip(clipped, floors, strict=True))
 
 
 def test_a_light_the_outline_holds_takes_its_rectangle():

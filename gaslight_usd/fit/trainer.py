@@ -611,11 +611,13 @@ class Trainer:
                             self._measured_views(range(len(self.data.images)))).as_dict()
 
     def _flat_outlines(self) -> list[Outline]:
-        """The rectangles the views clipped on the room's planes (windows, panels:
+        """The rectangles the views saw lights in on the room's planes (windows, panels:
         :mod:`gaslight_usd.flat_outlines`), from every view."""
         if not self.room_planes:
             return []
-        masks = lit_masks([self.data.floor(i) for i in range(len(self.data.images))])
+        masks = lit_masks(self.data.images,
+                          [self.data.floor(i) for i in range(len(self.data.images))],
+                          self.y_weights.cpu().numpy())
         return plane_outlines([(p.normal, p.offset) for p in self.room_planes],
                               self.data.cameras, masks)
 
