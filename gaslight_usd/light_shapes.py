@@ -64,6 +64,9 @@ class Panel:
     half_size: np.ndarray
     plane_offset: float
     """How far the light's centre was from its plane (before it was put on it)."""
+    outlined: bool = False
+    """The rectangle is one the views outlined (:mod:`gaslight_usd.flat_outlines`), not
+    the splats' spread."""
 
     @property
     def area(self) -> float:
@@ -133,7 +136,7 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
             return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
                          normal=normal.copy(), u=outline.u.copy(),
                          v=np.cross(outline.u, normal), half_size=outline.half_size.copy(),
-                         plane_offset=float(offsets[k]))
+                         plane_offset=float(offsets[k]), outlined=True)
     if not on_plane:
         return None
     across = [m for m, _ in planes if abs(m @ normal) < SQUARE_COS]

@@ -40,6 +40,8 @@ from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..flat_outlines import Outline, lit_masks, plane_outlines
+from ..flat_redraw import Redrawn, redraw_flat_lights
+from ..light_shapes import panel_of
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
@@ -621,6 +623,37 @@ class Trainer:
         return plane_outlines([(p.normal, p.offset) for p in self.room_planes],
                               self.data.cameras, masks)
 
+    def _redraw_flat_lights(self, scene: SplatScene, backdrop: int,
+                            outlines: list[Outline]) -> tuple[SplatScene, Redrawn]:
+        """Each light the views outlined on a wall or ceiling redrawn there as a flat,
+        even emitter at the power the training views drew (:mod:`gaslight_usd.flat_redraw`);
+        the lights as the export's lights finder will see them."""
+        if not self.room_planes or not outlines:
+            return scene, Redrawn()
+        from ..lights import outlined_lights, search_lights
+
+        probe = scene.subset(np.arange(scene.count))
+        probe.metadata["exposure_scale"] = float(
+            self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
+        probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop}
+        search = search_lights(probe)
+        depth = search.space.median_depth()
+        planes = [(p.normal, p.offset) for p in self.room_planes]
+        compact = outlined_lights(probe.metadata)
+        pairs = [(panel_of(light.position, light.extent, light.axes, planes, depth, outlines,
+                           compact), light.splats) for light in search.lights]
+        pairs = [(panel, idx) for panel, idx in pairs if panel is not None and panel.outlined]
+        if not pairs:
+            return scene, Redrawn()
+        cams = self.cameras()
+        scene, redrawn = redraw_flat_lights(
+            scene, [p for p, _ in pairs], [i for _, i in pairs], [cams[i] for i in self.train],
+            search.white, depth, self.y_weights.cpu().numpy(), tail=backdrop)
+        if redrawn.panels:
+            self.progress.message(f"redrew {len(redrawn.panels)} window(s) or panel(s) as "
+                                  "flat emitters on their rectangles")
+        return scene, redrawn
+
     def _measured_views(self, views) -> list[bool]:
         """Per view of ``views``: it clipped nothing (its light regions are measured)."""
         floors = [self.data.floor(i) for i in views]
@@ -812,6 +845,7 @@ class Trainer:
                                    y_weights=self.y_weights.cpu().numpy())
         if backdrop.count:
             scene = concatenate(scene, backdrop)
+        outlines = self._flat_outlines()
         # where the photos were taken and where they saw light over the white: the
         # captured space, the default probe and the lights finder start there
         scene.metadata = {**scene.metadata,
@@ -820,7 +854,7 @@ class Trainer:
                           "light_sightings": self._light_sightings(),
                           "light_seeds": [seed.as_dict() for seed in self._light_seeds()]
                           + [light.as_dict() for light in surfaced.placed],
-                          "flat_outlines": [o.as_dict() for o in self._flat_outlines()]}
+                          "flat_outlines": [o.as_dict() for o in outlines]}
         lights: list[LightPower] = []
         train_floors = [self.data.floor(i) for i in self.train]
         if cfg.clip_bounds and cfg.infer_power and any(f is not None for f in train_floors):
@@ -833,9 +867,12 @@ class Trainer:
         if self.room_planes:
             scene, on_walls = self._surface_sunk_lights(scene, frozenset({"broad"}),
                                                         broad_on_planes=True)
+        redrawn = Redrawn()
+        if cfg.redraw_flat_lights:
+            scene, redrawn = self._redraw_flat_lights(scene, backdrop.count, outlines)
         scene, oversized = self._cut_oversized(scene, backdrop.count)
         if (backdrop.count or lights or surfaced.moved or on_walls.moved
-                or oversized["splats"]) and self.held:
+                or oversized["splats"] or redrawn.panels) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
         metrics = {
@@ -860,6 +897,7 @@ class Trainer:
             "surfaced_lights": {**surfaced.as_dict(), "floaters_moved_midway":
                                 self.floaters_moved},
             "broad_lights_on_walls": on_walls.as_dict(),
+            "flat_lights_redrawn": redrawn.as_dict(),
             "holes_filled": self.holes_filled,
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],

@@ -1,0 +1,180 @@
+"""Windows and panels redrawn as what they are: a flat, even emitter on their rectangle.
+
+A fit draws a window with a few hundred translucent blobs a few centimetres thick, each
+brighter than the window, plus a dim veil of floaters in front of it; seen from where
+the photos were taken they add up to the window, seen from half a metre they do not:
+from true HDR views the probe 0.5 m from a window saw +0.3..+0.6 stops of window light
+(+0.05..-0.03 from the cameras 3-5 m away; the renderer draws a flat window of splats
+right from any distance). Where the views outlined the light's rectangle on a wall or
+ceiling (:mod:`gaslight_usd.flat_outlines`, :func:`gaslight_usd.light_shapes.panel_of`),
+its splats, every splat in the rectangle within :data:`SLAB_SHARE` of the plane, and the
+bright ones round its edge, are replaced by a grid of flat, opaque splats on the
+rectangle, one colour (the replaced splats' power-weighted chroma), at the level that
+keeps what the training views draw (the sum of each view that frames it, solved in
+closed form: the grid is opaque, so a view's sum is linear in its level).
+
+``gaslight2usd bench --suite chain`` measures it at the probes 0.5 m from the windows
+(``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, session 49).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .cameras import PinholeCamera, matrix_to_quaternion
+from .light_shapes import Panel
+from .splats import SplatScene, logit, rgb_to_sh_dc
+
+CELL_SHARE = 0.02
+"""The grid's spacing, as a share of the captured space's median depth (5 cm in a 2.5 m
+room: a 1.8 x 1.2 m window is some 900 splats; neighbours overlap to an even sheet, and
+its edge blurs by 3 cm)."""
+SLAB_SHARE = 0.06
+"""Splats inside the rectangle within this share of the median depth of its plane (in
+front or behind) are the light's, or the wall's around it, and are replaced."""
+EDGE_SHARE = 0.08
+"""Bright splats (over the white) this far past the rectangle's edge, as a share of the
+median depth, are its halo and are replaced too."""
+THIN_SHARE = 0.001
+"""The grid's splats' thickness, as a share of the median depth."""
+OPACITY = 0.99
+
+
+@dataclass
+class Redrawn:
+    """What was redrawn: per panel its splats replaced, grid splats and level."""
+
+    panels: list[dict[str, Any]] = field(default_factory=list)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"panels": self.panels}
+
+
+def _grid(panel: Panel, cell: float, thin: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (K, 3), rotations (K, 4) and scales (K, 3) of a grid of flat splats
+    covering ``panel``."""
+    nu = max(1, int(np.ceil(2.0 * panel.half_size[0] / cell)))
+    nv = max(1, int(np.ceil(2.0 * panel.half_size[1] / cell)))
+    su, sv = 2.0 * panel.half_size[0] / nu, 2.0 * panel.half_size[1] / nv
+    a = -panel.half_size[0] + (np.arange(nu) + 0.5) * su
+    b = -panel.half_size[1] + (np.arange(nv) + 0.5) * sv
+    aa, bb = np.meshgrid(a, b, indexing="ij")
+    pos = panel.centre + aa.reshape(-1, 1) * panel.u + bb.reshape(-1, 1) * panel.v
+    frame = np.stack([panel.u, np.cross(panel.normal, panel.u), panel.normal], axis=1)
+    rot = np.tile(matrix_to_quaternion(frame), (len(pos), 1))
+    # a Gaussian of sigma 0.6 spacing: neighbours overlap to an even, opaque sheet
+    scales = np.tile([0.6 * su, 0.6 * sv, thin], (len(pos), 1))
+    return pos, rot, scales
+
+
+def _with_grid(head: SplatScene, pos: np.ndarray, rot: np.ndarray, scales: np.ndarray,
+               colour: np.ndarray, back: SplatScene) -> SplatScene:
+    """``head``, a grid of opaque splats of linear ``colour`` (3,), then ``back``."""
+    sh = np.zeros((len(pos), head.sh.shape[1], 3), np.float32)
+    sh[:, 0] = rgb_to_sh_dc(np.tile(np.asarray(colour, np.float32), (len(pos), 1)))
+    return SplatScene(
+        positions=np.concatenate([head.positions, pos.astype(np.float32), back.positions]),
+        rotations=np.concatenate([head.rotations, rot.astype(np.float32), back.rotations]),
+        log_scales=np.concatenate([head.log_scales, np.log(scales).astype(np.float32),
+                                   back.log_scales]),
+        opacity_logits=np.concatenate([head.opacity_logits, np.full(
+            len(pos), logit(np.array([OPACITY]))[0], np.float32), back.opacity_logits]),
+        sh=np.concatenate([head.sh, sh, back.sh]), metadata=dict(head.metadata))
+
+
+def _view_sums(scene: SplatScene, cameras: Sequence[PinholeCamera], weights: np.ndarray
+               ) -> np.ndarray:
+    from .render import render
+
+    return np.array([float(render(scene, cam).image.detach().cpu().numpy()
+                           .reshape(-1, 3).astype(np.float64).sum(0) @ weights)
+                     for cam in cameras])
+
+
+def _framing(panel: Panel, cameras: Sequence[PinholeCamera]) -> list[PinholeCamera]:
+    """The cameras in front of ``panel`` whose frame holds its centre."""
+    out = []
+    for cam in cameras:
+        if float((cam.center - panel.centre) @ panel.normal) <= 0:
+            continue
+        uv, z = cam.project(panel.centre[None])
+        if z[0] > 0 and 0 <= uv[0, 0] < cam.width and 0 <= uv[0, 1] < cam.height:
+            out.append(cam)
+    return out
+
+
+def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
+                       light_splats: Sequence[np.ndarray], cameras: Sequence[PinholeCamera],
+                       white: float, median_depth: float, weights: np.ndarray,
+                       tail: int = 0) -> tuple[SplatScene, Redrawn]:
+    """``scene`` with each of ``panels`` (the rectangle of the light whose splats are
+    ``light_splats``) redrawn as a flat, even emitter (module docstring), at the level
+    that keeps the sums of the ``cameras`` that frame it; ``white``: the views' white
+    (what is over it is bright); ``weights``: luminance weights; ``tail``: the last
+    splats (the fit's backdrop) are never replaced and stay last."""
+    report = Redrawn()
+    weights = np.asarray(weights, np.float64)
+    owns = [np.asarray(own, np.int64) for own in light_splats]
+    done: list[np.ndarray] = []
+    for k, panel in enumerate(panels):
+        if any(np.allclose(panel.centre, c) for c in done):
+            continue  # two lights the same outline holds: one rectangle
+        own = owns[k]
+        views = _framing(panel, cameras)
+        if not views:
+            continue
+        pos = scene.positions.astype(np.float64)
+        rel = pos - panel.centre
+        d, a, b = rel @ panel.normal, np.abs(rel @ panel.u), np.abs(rel @ panel.v)
+        colours = scene.base_colours.astype(np.float64)
+        bright = colours.max(axis=1) > white
+        slab = np.abs(d) <= SLAB_SHARE * median_depth
+        edge = EDGE_SHARE * median_depth
+        inside = (a <= panel.half_size[0]) & (b <= panel.half_size[1])
+        halo = (a <= panel.half_size[0] + edge) & (b <= panel.half_size[1] + edge)
+        replace = slab & (inside | (halo & bright))
+        replace[own] = True
+        if tail:
+            replace[len(replace) - tail:] = False
+        lit = replace & bright
+        if not lit.any():
+            continue
+        power = (colours[lit] * scene.opacities[lit, None]).sum(0)
+        chroma = power / max(float(power @ weights), 1e-30)
+        gpos, grot, gscale = _grid(panel, CELL_SHARE * median_depth,
+                                   THIN_SHARE * median_depth)
+        keep = np.flatnonzero(~replace)
+        head = scene.subset(keep[keep < len(replace) - tail])
+        back = scene.subset(keep[keep >= len(replace) - tail])
+
+        grid = (gpos, grot, gscale)
+
+        def with_level(level: float, head=head, back=back, grid=grid, chroma=chroma
+                       ) -> SplatScene:
+            return _with_grid(head, *grid, chroma * level, back)
+
+        before = _view_sums(scene, views, weights)
+        dark = _view_sums(with_level(0.0), views, weights)
+        unit = _view_sums(with_level(1.0), views, weights) - dark
+        if float(unit.sum()) <= 0:
+            continue
+        level = float((before - dark).sum() / unit.sum())
+        if not np.isfinite(level) or level <= 0:
+            continue
+        scene = with_level(level)
+        done.append(panel.centre)
+        remap = np.full(len(replace), -1, np.int64)
+        front = keep[keep < len(replace) - tail]
+        remap[front] = np.arange(len(front))  # the grid follows them, then the tail
+        owns = [remap[o][remap[o] >= 0] for o in owns]
+        report.panels.append({"centre": [round(float(x), 4) for x in panel.centre],
+                              "width": round(float(2 * panel.half_size[0]), 4),
+                              "height": round(float(2 * panel.half_size[1]), 4),
+                              "replaced_splats": int(replace.sum()),
+                              "grid_splats": int(len(gpos)),
+                              "radiance": round(level, 5), "views": len(views)})
+    return scene, report

@@ -1,0 +1,106 @@
+"""A window's fitted blobs redrawn as a flat, even emitter on its rectangle.
+
+A wall (x = 2.5, dim diffuse splats) holds a 1.2 x 1.0 m window drawn as a fit draws
+one: translucent blobs 1.6 times its radiance, a few centimetres thick, some a little in
+front of the wall, and a halo round its edge; the fit's backdrop is the last splats.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from gaslight_usd.cameras import PinholeCamera
+from gaslight_usd.flat_redraw import redraw_flat_lights
+from gaslight_usd.light_shapes import Panel
+from gaslight_usd.render import render
+from gaslight_usd.splats import SplatScene
+
+WEIGHTS = np.array([0.2126, 0.7152, 0.0722])
+CENTRE = np.array([2.5, 1.6, 0.2])
+HALF = np.array([0.6, 0.5])  # along z, along y
+
+
+def look_at(centre, target) -> PinholeCamera:
+    centre = np.asarray(centre, float)
+    z = np.asarray(target, float) - centre
+    z /= np.linalg.norm(z)
+    x = np.cross(z, [0.0, -1.0, 0.0])
+    x /= np.linalg.norm(x)
+    rot = np.stack([x, np.cross(z, x), z])
+    return PinholeCamera(96, 72, 80.0, 80.0, 48.0, 36.0, R=rot, t=-rot @ centre)
+
+
+def scene_with_window() -> tuple[SplatScene, np.ndarray, int]:
+    rng = np.random.default_rng(5)
+    gy, gz = np.meshgrid(np.arange(0.3, 3.0, 0.08), np.arange(-1.8, 2.0, 0.08))
+    wall = np.column_stack([np.full(gy.size, 2.5), gy.ravel(), gz.ravel()])
+    on_window = (np.abs(wall[:, 2] - CENTRE[2]) <= HALF[0]) & (np.abs(wall[:, 1] - CENTRE[1])
+                                                               <= HALF[1])
+    wall = wall[~on_window]
+    k = 400
+    blobs = np.column_stack([2.5 - np.abs(rng.normal(0, 0.04, k)),
+                             CENTRE[1] + rng.uniform(-HALF[1], HALF[1], k),
+                             CENTRE[2] + rng.uniform(-HALF[0], HALF[0], k)])
+    halo = np.column_stack([np.full(20, 2.49), CENTRE[1] + HALF[1] + rng.uniform(0.01, 0.1, 20),
+                            CENTRE[2] + rng.uniform(-HALF[0], HALF[0], 20)])
+    backdrop = np.column_stack([np.full(10, 3.5), rng.uniform(1.2, 2.0, 10),
+                                rng.uniform(-0.3, 0.7, 10)])
+    pos = np.concatenate([wall, blobs, halo, backdrop])
+    rgb = np.concatenate([np.full((len(wall), 3), 0.3), np.full((k, 3), 16.0),
+                          np.full((20, 3), 6.0), np.full((10, 3), 2.0)])
+    scales = np.concatenate([np.full((len(wall), 3), 0.05), np.full((k, 3), 0.05) *
+                             [1.0, 1.0, 0.6], np.full((20, 3), 0.03), np.full((10, 3), 0.2)])
+    opac = np.concatenate([np.full(len(wall), 0.95), np.full(k, 0.35), np.full(20, 0.5),
+                           np.full(10, 0.9)])
+    scene = SplatScene.from_activated(pos, rgb, scales, opac)
+    window = np.arange(len(wall), len(wall) + k)
+    return scene, window, 10
+
+
+def panel() -> Panel:
+    normal = np.array([-1.0, 0.0, 0.0])
+    u = np.array([0.0, 0.0, 1.0])
+    return Panel(centre=CENTRE + 0.005 * normal, normal=normal, u=u, v=np.cross(u, normal),
+                 half_size=HALF.copy(), plane_offset=0.0, outlined=True)
+
+
+def sums(scene, cams) -> np.ndarray:
+    with torch.no_grad():
+        return np.array([float(render(scene, c).image.numpy().reshape(-1, 3).sum(0) @ WEIGHTS)
+                         for c in cams])
+
+
+def test_a_window_of_blobs_is_redrawn_flat_and_even_at_the_power_the_views_drew():
+    scene, window, tail = scene_with_window()
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    out, report = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail)
+    assert len(report.panels) == 1
+    entry = report.panels[0]
+    assert entry["replaced_splats"] >= len(window) + 20  # the blobs and the halo
+    before, after = sums(scene, cams), sums(out, cams)
+    assert abs(after.sum() / before.sum() - 1.0) < 0.01  # one level keeps the views' total
+    np.testing.assert_allclose(after, before, rtol=0.06)  # the blobs were not even
+    # the backdrop stays last, untouched
+    np.testing.assert_array_equal(out.positions[-tail:], scene.positions[-tail:])
+    # the grid lies on the panel's plane, inside its rectangle, opaque
+    grid = out.base_colours.max(axis=1) > 1.0
+    grid[-tail:] = False
+    assert np.allclose(out.positions[grid, 0], panel().centre[0], atol=1e-4)
+    assert np.all(np.abs(out.positions[grid, 2] - CENTRE[2]) <= HALF[0])
+    # seen from 0.4 m, face on: an even emitter at the level it was given
+    near = look_at(CENTRE + [-0.4, 0.0, 0.0], CENTRE)
+    with torch.no_grad():
+        lum = render(out, near).image.numpy()[24:48, 32:64] @ WEIGHTS
+    assert float(lum.std() / lum.mean()) < 0.05
+    assert abs(float(lum.mean()) / entry["radiance"] - 1.0) < 0.05
+
+
+def test_nothing_is_redrawn_where_no_camera_frames_the_panel():
+    scene, window, tail = scene_with_window()
+    behind = [look_at([4.0, 1.5, 0.0], [5.0, 1.5, 0.0])]
+    out, report = redraw_flat_lights(scene, [panel()], [window], behind, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail)
+    assert report.panels == [] and out is scene
