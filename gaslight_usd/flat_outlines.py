@@ -1,8 +1,7 @@
 """Where the views saw light on the room's planes: the rectangles of windows and panels.
 
 A window's splats say little about its edges: a fit draws it with a few dozen blobs whose
-spread is not its size (from the chain bench's photos a 1.8 x 1.2 m window came out
-0.9 x 1.0 m, a 0.9 x 0.8 m one 0.6 x 0.4 m, or not flat enough to be a panel at all).
+spread is not its size (often a third smaller, or not flat enough to be a panel at all).
 The views say it exactly: every photo that frames the window clipped the same rectangle
 of the wall. So each room plane (the fit's room box, :func:`gaslight_usd.fit.planes.room_box`)
 is cut into cells, each cell is looked up in every view that frames it from the plane's
@@ -16,7 +15,8 @@ this one (windows and panels are set square to their walls), bounding the region
 
 The fit stores them in the splats' metadata (``flat_outlines``); the rig's panels take a
 light's rectangle from the outline that holds it (:func:`gaslight_usd.light_shapes.panel_of`).
-Measured by ``gaslight2usd bench --suite chain`` (``rig_irradiance_psnr``).
+Measured by ``gaslight2usd bench --suite chain`` (``rect_iou_<light>``,
+``rig_irradiance_psnr``; figures in ``docs/measurements.md``, session 49).
 """
 
 from __future__ import annotations
@@ -47,9 +47,11 @@ UNCLIPPED_RATIO = 8.0
 light is what is over this many times the view's median luminance: the chain bench's
 windows are 15-50 times their rooms' walls, the light those windows and lamps throw on
 the walls a few times."""
+MIN_FILL = 0.8
+"""An outline is a light's rectangle only where its lit cells fill this share of it."""
 MAX_OUTLINES = 32
-"""Kept, the most lit cells first: a speckled set's photos clip hundreds of specks (the
-chain bench's shaded-lamp room: 380-630 regions), and the splats' metadata carries them."""
+"""Kept, the most lit cells first: a speckled set's photos clip hundreds of specks, and
+the splats' metadata carries them."""
 SQUARE_COS = 0.2
 """Another plane whose normal is within this |cos| of square to this one sets the sides."""
 
@@ -66,6 +68,14 @@ class Outline:
     half_size: np.ndarray
     cells: int
     """Lit cells in the region (the rectangle may hold unlit corners)."""
+    fill: float = 1.0
+    """The share of the rectangle's cells that are lit: a window's or panel's clipped
+    region fills its rectangle; specks and lit walls merged into one region do not."""
+
+    @property
+    def clean(self) -> bool:
+        """Whether the region fills its rectangle (:data:`MIN_FILL`): a light's rectangle."""
+        return self.fill >= MIN_FILL
 
     def holds(self, point: np.ndarray, margin: float = 0.0) -> bool:
         """Whether ``point``, put on the outline's plane, lies within the rectangle
@@ -80,7 +90,7 @@ class Outline:
                 "u": [round(float(x), 5) for x in self.u],
                 "v": [round(float(x), 5) for x in self.v],
                 "half_size": [round(float(x), 5) for x in self.half_size],
-                "cells": int(self.cells)}
+                "cells": int(self.cells), "fill": round(float(self.fill), 4)}
 
     @classmethod
     def from_dict(cls, entry: Mapping[str, Any]) -> Outline | None:
@@ -90,11 +100,12 @@ class Outline:
                     for k in ("centre", "normal", "u", "v")]
             half = np.asarray(entry["half_size"], np.float64).reshape(2)
             cells = int(entry.get("cells", 0))
+            fill = float(entry.get("fill", 1.0))
         except (KeyError, TypeError, ValueError):
             return None
         if not all(np.all(np.isfinite(x)) for x in (*vecs, half)) or half.min() <= 0:
             return None
-        return cls(*vecs, half_size=half, cells=cells)
+        return cls(*vecs, half_size=half, cells=cells, fill=fill)
 
 
 def outlines_from_metadata(metadata: Mapping[str, Any]) -> list[Outline]:
@@ -169,12 +180,13 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             if lab == 0:
                 continue
             iu, iv = np.nonzero(labels == lab)
+            box = (iu.max() - iu.min() + 1) * (iv.max() - iv.min() + 1)
             a0, a1 = gu[iu.min()] - cell / 2, gu[iu.max()] + cell / 2
             b0, b1 = gv[iv.min()] - cell / 2, gv[iv.max()] + cell / 2
             centre = offset * normal + (a0 + a1) / 2 * u + (b0 + b1) / 2 * v
             out.append(Outline(centre=centre, normal=normal.copy(), u=u.copy(), v=v.copy(),
                                half_size=np.array([(a1 - a0) / 2, (b1 - b0) / 2]),
-                               cells=int(sizes[lab])))
+                               cells=int(sizes[lab]), fill=float(sizes[lab] / box)))
     return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
 
 
@@ -186,7 +198,7 @@ def lit_masks(images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
 
     Not over the view's white, as the sightings read an unclipped view: a true HDR view's
     white is any level, and over it the outlines took whole lit ceilings with the panels
-    (the rig lost 1.9 dB from true HDR views, ``docs/measurements.md``, session 49)."""
+    (``docs/measurements.md``, session 49)."""
     out = []
     for image, floor in zip(images, floors, strict=True):
         if floor is not None and bool(np.any(np.asarray(floor) > 0)):

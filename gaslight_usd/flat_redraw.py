@@ -3,15 +3,18 @@
 A fit draws a window with a few hundred translucent blobs a few centimetres thick, each
 brighter than the window, plus a dim veil of floaters in front of it; seen from where
 the photos were taken they add up to the window, seen from half a metre they do not:
-from true HDR views the probe 0.5 m from a window saw +0.3..+0.6 stops of window light
-(+0.05..-0.03 from the cameras 3-5 m away; the renderer draws a flat window of splats
-right from any distance). Where the views outlined the light's rectangle on a wall or
-ceiling (:mod:`gaslight_usd.flat_outlines`, :func:`gaslight_usd.light_shapes.panel_of`),
-its splats, every splat in the rectangle within :data:`SLAB_SHARE` of the plane, and the
+even from true HDR views a probe 0.5 m from a window saw a good part of a stop too much
+of its light, though the renderer draws a flat window of splats right from any distance.
+
+Where the views outlined the light's rectangle on a wall or ceiling
+(:mod:`gaslight_usd.flat_outlines`, :func:`gaslight_usd.light_shapes.panel_of`), its
+splats, every splat in the rectangle within :data:`SLAB_SHARE` of the plane, and the
 bright ones round its edge, are replaced by a grid of flat, opaque splats on the
 rectangle, one colour (the replaced splats' power-weighted chroma), at the level that
-keeps what the training views draw (the sum of each view that frames it, solved in
-closed form: the grid is opaque, so a view's sum is linear in its level).
+keeps what the training views draw (their sums over the views that frame it, solved in
+closed form: the grid is opaque, so a view's sum is linear in its level). The window's
+power stays what the fit made it (from photos, the uplift's fill); only its shape
+changes.
 
 ``gaslight2usd bench --suite chain`` measures it at the probes 0.5 m from the windows
 (``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, session 49).

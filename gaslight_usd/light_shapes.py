@@ -39,9 +39,9 @@ plane: a window or panel the fit found sits in its plane to a few centimetres, a
 bulb a good share of the room's height away (docs/measurements.md, session 48)."""
 OUTLINED_OFF_SHARE = 0.35
 """A light this far off a plane (share of the median depth) is that plane's panel where an
-outline there holds it (:func:`panel_of`): from the chain bench's photos the fit left a
-window's light 0.2-0.3 of the median depth in front of it in four fits of eighteen
-(``docs/measurements.md``, session 49)."""
+outline there holds it (:func:`panel_of`): a fit can leave a window's light that far in
+front of it (``gaslight2usd bench --suite chain``, ``rect_iou_<light>``;
+``docs/measurements.md``, session 49)."""
 FLAT_RATIO = 0.75
 """A panel's spread off its plane is at most this share of its larger spread in it."""
 SQUARE_COS = 0.2
@@ -170,10 +170,11 @@ def _near_compact(position: np.ndarray, compact: np.ndarray | None, reach: float
 
 def _holding_outline(position: np.ndarray, normal: np.ndarray, offset: float,
                      outlines: Sequence[Outline], tolerance: float) -> Outline | None:
-    """The outline with the most lit cells on the plane (``normal``, ``offset``) that
-    holds ``position`` within ``tolerance``; None when none does."""
+    """The clean outline (one that fills its rectangle) with the most lit cells on the
+    plane (``normal``, ``offset``) that holds ``position`` within ``tolerance``; None when
+    none does."""
     held = [o for o in outlines
-            if float(o.normal @ normal) > 1.0 - SQUARE_COS ** 2 / 2
+            if o.clean and float(o.normal @ normal) > 1.0 - SQUARE_COS ** 2 / 2
             and abs(float(o.normal @ o.centre) - offset) <= tolerance
             and o.holds(position, tolerance)]
     return max(held, key=lambda o: o.cells) if held else None

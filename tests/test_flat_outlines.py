@@ -138,3 +138,29 @@ def test_outlines_round_trip_through_metadata():
     assert len(back) == len(outlines)
     np.testing.assert_allclose(back[0].centre, outlines[0].centre, atol=1e-4)
     assert outlines_from_metadata({}) == []
+
+
+def test_a_ragged_lit_region_is_no_lights_rectangle():
+    """The window and a lit strip of wall along its bottom and down one side, clipped
+    in every view: one L-shaped region that fills under MIN_FILL of its rectangle,
+    which no light takes for its own."""
+    cams = cameras()
+    masks = []
+    for cam in cams:
+        dirs = cam.ray_directions()
+        t = (2.5 - cam.center[0]) / np.where(dirs[..., 0] > 1e-6, dirs[..., 0], np.nan)
+        hit = cam.center + dirs * t[..., None]
+        with np.errstate(invalid="ignore"):
+            strip = ((np.abs(hit[..., 2] - WINDOW_CENTRE[2]) <= HALF[0] + 0.8)
+                     & (hit[..., 1] < WINDOW_CENTRE[1] - HALF[1])
+                     & (hit[..., 1] > WINDOW_CENTRE[1] - HALF[1] - 0.2))
+            side = ((hit[..., 2] > WINDOW_CENTRE[2] + HALF[0])
+                    & (hit[..., 2] < WINDOW_CENTRE[2] + HALF[0] + 0.8)
+                    & (np.abs(hit[..., 1] - WINDOW_CENTRE[1]) <= HALF[1] + 0.6))
+        masks.append(window_mask(cam) | strip | side)
+    ragged = window_outline(plane_outlines(PLANES, cams, masks))
+    assert not ragged.clean
+    position, extent, axes = WINDOW_CENTRE, np.full(3, 0.15), np.eye(3)
+    assert panel_of(position, extent, axes, PLANES, 2.5, [ragged]) is None
+    clean = window_outline(plane_outlines(PLANES, cams, [window_mask(c) for c in cams]))
+    assert clean.clean and clean.fill > 0.95

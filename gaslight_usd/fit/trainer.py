@@ -623,11 +623,12 @@ class Trainer:
         return plane_outlines([(p.normal, p.offset) for p in self.room_planes],
                               self.data.cameras, masks)
 
-    def _redraw_flat_lights(self, scene: SplatScene, backdrop: int,
-                            outlines: list[Outline]) -> tuple[SplatScene, Redrawn]:
+    def _redraw_flat_lights(self, scene: SplatScene, backdrop: int, outlines: list[Outline],
+                            weighed: list[LightPower]) -> tuple[SplatScene, Redrawn]:
         """Each light the views outlined on a wall or ceiling redrawn there as a flat,
         even emitter at the power the training views drew (:mod:`gaslight_usd.flat_redraw`);
-        the lights as the export's lights finder will see them."""
+        the lights as the export's lights finder will see them (the views' white, the
+        fit's backdrop, the lights it ``weighed``)."""
         if not self.room_planes or not outlines:
             return scene, Redrawn()
         from ..lights import outlined_lights, search_lights
@@ -635,7 +636,12 @@ class Trainer:
         probe = scene.subset(np.arange(scene.count))
         probe.metadata["exposure_scale"] = float(
             self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
-        probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop}
+        probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop, "clipped_lights":
+                                         [light.as_dict() for light in weighed]}
+        method = self.data.attributes.get("gaslight:method")
+        if not method and all(self.data.floor(i) is None for i in range(len(self.data.images))):
+            method = "measured"  # HDR views that clipped nothing: their lights were measured
+        probe.metadata["provenance"] = {"hdr_method": method}
         search = search_lights(probe)
         depth = search.space.median_depth()
         planes = [(p.normal, p.offset) for p in self.room_planes]
@@ -869,7 +875,7 @@ class Trainer:
                                                         broad_on_planes=True)
         redrawn = Redrawn()
         if cfg.redraw_flat_lights:
-            scene, redrawn = self._redraw_flat_lights(scene, backdrop.count, outlines)
+            scene, redrawn = self._redraw_flat_lights(scene, backdrop.count, outlines, lights)
         scene, oversized = self._cut_oversized(scene, backdrop.count)
         if (backdrop.count or lights or surfaced.moved or on_walls.moved
                 or oversized["splats"] or redrawn.panels) and self.held:
