@@ -12,9 +12,11 @@ splats, every splat in the rectangle within :data:`SLAB_SHARE` of the plane, and
 bright ones round its edge, are replaced by a grid of flat, opaque splats on the
 rectangle, one colour (the replaced splats' power-weighted chroma), at the level that
 keeps what the training views draw (their sums over the views that frame it, solved in
-closed form: the grid is opaque, so a view's sum is linear in its level). The window's
-power stays what the fit made it (from photos, the uplift's fill); only its shape
-changes.
+closed form: the grid is opaque, so a view's sum is linear in its level). The light's
+power stays what the fit made it; only its shape changes. The fit redraws only lights a
+view measured (a true HDR view, merged brackets, a darker frame:
+:func:`gaslight_usd.fit.power.light_sighting`): where every photo clipped a window its
+power is the uplift's fill, a lower bound, and drawn flat it lost more of it near by.
 
 ``gaslight2usd bench --suite chain`` measures it at the probes 0.5 m from the windows
 (``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, session 49).

@@ -80,10 +80,10 @@ class FitConfig:
     drawn finer than the fitting size (HDRIs, probes), it keeps the power its views
     measured (:mod:`.fine_power`); off: the splats as fitted."""
     redraw_flat_lights: bool = True
-    """After the fit, redraw each window or panel whose rectangle the views outlined on a
-    wall or ceiling as a flat, even emitter there, at the power the training views drew
-    (:mod:`gaslight_usd.flat_redraw`: the fitted blobs draw it too bright from close by);
-    off: the splats as fitted."""
+    """After the fit, redraw each window or panel a view measured (not clipped) whose
+    rectangle the views outlined on a wall or ceiling as a flat, even emitter there, at
+    the power the training views drew (:mod:`gaslight_usd.flat_redraw`: the fitted blobs
+    draw it too bright from close by); off: the splats as fitted."""
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``
     off is the old behaviour: the fill fitted like a measurement)."""

@@ -78,7 +78,7 @@ from .planes import (
     room_box,
 )
 from .pose_refine import PoseRefiner
-from .power import LightPower, infer_light_power, lights_to_weigh
+from .power import LightPower, infer_light_power, light_sighting, lights_to_weigh
 from .presets import FitConfig
 from .single_view import BRIGHT_RATIO, single_view_lights
 from .sunk_lights import RULES, SurfacedLights, surface_sunk_lights
@@ -646,15 +646,26 @@ class Trainer:
         depth = search.space.median_depth()
         planes = [(p.normal, p.offset) for p in self.room_planes]
         compact = outlined_lights(probe.metadata)
-        pairs = [(panel_of(light.position, light.extent, light.axes, planes, depth, outlines,
-                           compact), light.splats) for light in search.lights]
-        pairs = [(panel, idx) for panel, idx in pairs if panel is not None and panel.outlined]
+        panels = [panel_of(light.position, light.extent, light.axes, planes, depth, outlines,
+                           compact) for light in search.lights]
+        cams = self.cameras()
+        views = [cams[i] for i in self.train]
+        images = [self.data.images[i] for i in self.train]
+        floors = [self.data.floor(i) for i in self.train]
+        weights = self.y_weights.cpu().numpy()
+        # a light every view clipped keeps its fitted shape: its power is the uplift's
+        # fill, a lower bound (:mod:`.power`), and drawn flat it would only lose more of
+        # it near by (docs/measurements.md, session 49)
+        pairs = []
+        for panel, light in zip(panels, search.lights, strict=True):
+            if panel is not None and panel.outlined and light_sighting(
+                    light.position, views, images, floors, weights, search.white) == "measured":
+                pairs.append((panel, light.splats))
         if not pairs:
             return scene, Redrawn()
-        cams = self.cameras()
         scene, redrawn = redraw_flat_lights(
-            scene, [p for p, _ in pairs], [i for _, i in pairs], [cams[i] for i in self.train],
-            search.white, depth, self.y_weights.cpu().numpy(), tail=backdrop)
+            scene, [p for p, _ in pairs], [i for _, i in pairs], views, search.white, depth,
+            weights, tail=backdrop)
         if redrawn.panels:
             self.progress.message(f"redrew {len(redrawn.panels)} window(s) or panel(s) as "
                                   "flat emitters on their rectangles")
