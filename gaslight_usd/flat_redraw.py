@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from .cameras import PinholeCamera, matrix_to_quaternion
-from .light_shapes import Panel
+from .light_shapes import OUTLINED_OFF_SHARE, Panel
 from .splats import SplatScene, logit, rgb_to_sh_dc
 
 CELL_SHARE = 0.02
@@ -44,6 +44,10 @@ front or behind) are the light's, or the wall's around it, and are replaced."""
 EDGE_SHARE = 0.08
 """Bright splats (over the white) this far past the rectangle's edge, as a share of the
 median depth, are its halo and are replaced too."""
+OFF_SHARE = OUTLINED_OFF_SHARE
+"""The light's own splats are replaced up to this share of the median depth off the
+plane (as far as :func:`gaslight_usd.light_shapes.panel_of` takes a light for the
+panel)."""
 THIN_SHARE = 0.001
 """The grid's splats' thickness, as a share of the median depth."""
 OPACITY = 0.99
@@ -142,7 +146,10 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         inside = (a <= panel.half_size[0]) & (b <= panel.half_size[1])
         halo = (a <= panel.half_size[0] + edge) & (b <= panel.half_size[1] + edge)
         replace = slab & (inside | (halo & bright))
-        replace[own] = True
+        # the light's own splats, where they lie over the rectangle (a fit can leave a
+        # window's light in front of it); not those of another light grouped with it
+        over = own[halo[own] & (np.abs(d[own]) <= OFF_SHARE * median_depth)]
+        replace[over] = True
         if tail:
             replace[len(replace) - tail:] = False
         lit = replace & bright

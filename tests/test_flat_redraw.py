@@ -75,9 +75,14 @@ def test_a_window_of_blobs_is_redrawn_flat_and_even_at_the_power_the_views_drew(
     scene, window, tail = scene_with_window()
     cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
                                          [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
-    out, report = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
-                                     median_depth=2.5, weights=WEIGHTS, tail=tail)
+    # a light grouped with it elsewhere on the wall (its splats in the window's light)
+    elsewhere = np.flatnonzero(np.abs(scene.positions[:, 2] + 1.5) < 0.05)[:5]
+    out, report = redraw_flat_lights(scene, [panel()], [np.concatenate([window, elsewhere])],
+                                     cams, white=1.0, median_depth=2.5, weights=WEIGHTS,
+                                     tail=tail)
     assert len(report.panels) == 1
+    kept = {tuple(p) for p in out.positions.round(5).tolist()}
+    assert all(tuple(p) in kept for p in scene.positions[elsewhere].round(5).tolist())
     entry = report.panels[0]
     assert entry["replaced_splats"] >= len(window) + 20  # the blobs and the halo
     before, after = sums(scene, cams), sums(out, cams)
