@@ -44,6 +44,9 @@ front or behind) are the light's, or the wall's around it, and are replaced."""
 EDGE_SHARE = 0.08
 """Bright splats (over the white) this far past the rectangle's edge, as a share of the
 median depth, are its halo and are replaced too."""
+HALO_SHARE = 0.25
+"""Splats round the rectangle's edge are its halo where over this share of the light's
+median radiance: a ceiling panel lights the ceiling round it over the views' white."""
 OFF_SHARE = OUTLINED_OFF_SHARE
 """The light's own splats are replaced up to this share of the median depth off the
 plane (as far as :func:`gaslight_usd.light_shapes.panel_of` takes a light for the
@@ -140,11 +143,14 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         rel = pos - panel.centre
         d, a, b = rel @ panel.normal, np.abs(rel @ panel.u), np.abs(rel @ panel.v)
         colours = scene.base_colours.astype(np.float64)
-        bright = colours.max(axis=1) > white
+        radiance = colours.max(axis=1)
         slab = np.abs(d) <= SLAB_SHARE * median_depth
         edge = EDGE_SHARE * median_depth
         inside = (a <= panel.half_size[0]) & (b <= panel.half_size[1])
         halo = (a <= panel.half_size[0] + edge) & (b <= panel.half_size[1] + edge)
+        # the halo is the light's blur, not the wall or ceiling it lights round it
+        level = np.median(radiance[own]) if len(own) else white
+        bright = radiance > max(white, HALO_SHARE * float(level))
         replace = slab & (inside | (halo & bright))
         # the light's own splats, where they lie over the rectangle (a fit can leave a
         # window's light in front of it); not those of another light grouped with it
@@ -152,7 +158,7 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         replace[over] = True
         if tail:
             replace[len(replace) - tail:] = False
-        lit = replace & bright
+        lit = replace & (radiance > white)
         if not lit.any():
             continue
         power = (colours[lit] * scene.opacities[lit, None]).sum(0)
