@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from test_flat_outlines import look_at as outlines_look_at
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.flat_redraw import redraw_flat_lights
@@ -22,13 +23,7 @@ HALF = np.array([0.6, 0.5])  # along z, along y
 
 
 def look_at(centre, target) -> PinholeCamera:
-    centre = np.asarray(centre, float)
-    z = np.asarray(target, float) - centre
-    z /= np.linalg.norm(z)
-    x = np.cross(z, [0.0, -1.0, 0.0])
-    x /= np.linalg.norm(x)
-    rot = np.stack([x, np.cross(z, x), z])
-    return PinholeCamera(96, 72, 80.0, 80.0, 48.0, 36.0, R=rot, t=-rot @ centre)
+    return outlines_look_at(centre, target, width=96, height=72, focal=80.0)
 
 
 def scene_with_window() -> tuple[SplatScene, np.ndarray, int]:
