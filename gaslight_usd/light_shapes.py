@@ -19,8 +19,13 @@ walls), its half-sizes the light's spread along them (a uniform box of the splat
 spread, as :attr:`Light.extent <gaslight_usd.lights.Light.extent>`). Sets without a
 room box (a fit that found no two facing walls) keep every light round.
 
-``gaslight2usd bench --suite chain`` (``rig_irradiance_psnr``) measures what writing
-panels as rectangles does to the rig's light at the probes.
+Where the views outlined a lit rectangle on the light's plane
+(:mod:`gaslight_usd.flat_outlines`), that rectangle is the panel's, flat splats or not,
+and holds a light the fit left up to :data:`OUTLINED_OFF_SHARE` in front of the plane:
+the splats' spread is not a window's size, the photos' clipped outline is.
+
+``gaslight2usd bench --suite chain`` (``rig_irradiance_psnr``, ``rect_iou_<light>``)
+measures what writing panels as rectangles does to the rig's light at the probes.
 """
 
 from __future__ import annotations
@@ -114,7 +119,7 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
 
     ``position``, ``extent`` and ``axes``: the light's centre, half-sizes and their
     directions (rows), as :class:`gaslight_usd.lights.Light` holds them. ``outlines``:
-    the rectangles the views clipped on the room's planes (:mod:`gaslight_usd.flat_outlines`):
+    the rectangles the views saw lit on the room's planes (:mod:`gaslight_usd.flat_outlines`):
     one on the light's plane that holds its centre is its rectangle, flat or not, and
     holds it up to :data:`OUTLINED_OFF_SHARE` off the plane (a window's light the fit
     left floating in front of it) unless the photos outlined a compact light there
