@@ -176,13 +176,12 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         if not count:
             continue
         sizes = np.bincount(labels.ravel(), minlength=count + 1)
-        for lab in np.flatnonzero(sizes >= MIN_CELLS):
-            if lab == 0:
+        for lab, (su, sv) in enumerate(ndimage.find_objects(labels), start=1):
+            if sizes[lab] < MIN_CELLS:
                 continue
-            iu, iv = np.nonzero(labels == lab)
-            box = (iu.max() - iu.min() + 1) * (iv.max() - iv.min() + 1)
-            a0, a1 = gu[iu.min()] - cell / 2, gu[iu.max()] + cell / 2
-            b0, b1 = gv[iv.min()] - cell / 2, gv[iv.max()] + cell / 2
+            box = (su.stop - su.start) * (sv.stop - sv.start)
+            a0, a1 = gu[su.start] - cell / 2, gu[su.stop - 1] + cell / 2
+            b0, b1 = gv[sv.start] - cell / 2, gv[sv.stop - 1] + cell / 2
             centre = offset * normal + (a0 + a1) / 2 * u + (b0 + b1) / 2 * v
             out.append(Outline(centre=centre, normal=normal.copy(), u=u.copy(), v=v.copy(),
                                half_size=np.array([(a1 - a0) / 2, (b1 - b0) / 2]),
