@@ -115,13 +115,17 @@ def outlines_from_metadata(metadata: Mapping[str, Any]) -> list[Outline]:
     return [o for o in out if o is not None]
 
 
-def side_axis(normal: np.ndarray, others: Sequence[np.ndarray]) -> np.ndarray:
+def side_axis(normal: np.ndarray, others: Sequence[np.ndarray],
+              fallback: np.ndarray | None = None) -> np.ndarray:
     """A unit direction in the plane of ``normal``: along the plane square to it in
-    ``others`` (normals) that is most nearly so, else the in-plane direction nearest
-    the world's x axis, then z."""
+    ``others`` (normals; ``normal`` itself among them is ignored) that is most nearly so
+    (windows and panels are set square to their walls), else ``fallback`` put in the
+    plane, else the in-plane direction nearest the world's x axis, then z."""
     normal = np.asarray(normal, np.float64)
     across = [np.asarray(m, np.float64) for m in others if abs(np.asarray(m) @ normal) < SQUARE_COS]
     candidates = [min(across, key=lambda m: abs(m @ normal))] if across else []
+    if fallback is not None:
+        candidates.append(np.asarray(fallback, np.float64))
     candidates += [np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])]
     for side in candidates:
         u = side - (side @ normal) * normal

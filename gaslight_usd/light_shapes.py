@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from .flat_outlines import Outline
+from .flat_outlines import SQUARE_COS, Outline, side_axis
 
 ON_PLANE_SHARE = 0.05
 """A panel's centre lies within this share of the captured space's median depth of its
@@ -49,9 +49,6 @@ front of it (``gaslight2usd bench --suite chain``, ``rect_iou_<light>``;
 ``docs/measurements.md``, session 49)."""
 FLAT_RATIO = 0.75
 """A panel's spread off its plane is at most this share of its larger spread in it."""
-SQUARE_COS = 0.2
-"""Another room plane whose normal is within this |cos| of square to the panel's plane
-sets the rectangle's sides."""
 NUDGE_SHARE = 0.005
 """The rectangle sits this share of the median depth in front of its plane."""
 
@@ -144,16 +141,10 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
                          plane_offset=float(offsets[k]), outlined=True)
     if not on_plane:
         return None
-    across = [m for m, _ in planes if abs(m @ normal) < SQUARE_COS]
-    if across:
-        side = min(across, key=lambda m: abs(m @ normal))
-    else:  # no square plane: the light's own longest direction in the plane
-        side = axes[int(np.argmax(np.linalg.norm(axes - np.outer(axes @ normal, normal),
-                                                 axis=1) * extent))]
-    u = side - (side @ normal) * normal
-    if np.linalg.norm(u) < 1e-6:
-        return None
-    u /= np.linalg.norm(u)
+    # no square plane: the light's own longest direction in the plane
+    longest = axes[int(np.argmax(np.linalg.norm(axes - np.outer(axes @ normal, normal),
+                                                axis=1) * extent))]
+    u = side_axis(normal, [m for m, _ in planes], longest)
     v = np.cross(u, normal)
     half = np.array([_spread(extent, axes, u), _spread(extent, axes, v)])
     if _spread(extent, axes, normal) > FLAT_RATIO * half.max() or half.min() <= 0:

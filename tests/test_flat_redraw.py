@@ -12,7 +12,7 @@ import torch
 from test_flat_outlines import look_at as outlines_look_at
 
 from gaslight_usd.cameras import PinholeCamera
-from gaslight_usd.flat_redraw import redraw_flat_lights
+from gaslight_usd.fit.flat_redraw import redraw_flat_lights
 from gaslight_usd.light_shapes import Panel
 from gaslight_usd.render import render
 from gaslight_usd.splats import SplatScene

@@ -82,7 +82,7 @@ class FitConfig:
     redraw_flat_lights: bool = True
     """After the fit, redraw each window or panel a view measured (not clipped) whose
     rectangle the views outlined on a wall or ceiling as a flat, even emitter there, at
-    the power the training views drew (:mod:`gaslight_usd.flat_redraw`: the fitted blobs
+    the power the training views drew (:mod:`gaslight_usd.fit.flat_redraw`: the fitted blobs
     draw it too bright from close by); off: the splats as fitted."""
     clip_fill_weight: float = 0.1
     """How strongly clipped pixels pull towards the uplift's fill (1 with ``clip_bounds``

@@ -40,7 +40,6 @@ from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..flat_outlines import Outline, lit_masks, plane_outlines
-from ..flat_redraw import Redrawn, redraw_flat_lights
 from ..light_shapes import panel_of
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
@@ -53,6 +52,7 @@ from .contribution import contributions
 from .data import FitData
 from .exposure_check import exposure_outliers
 from .fine_power import FinePower, fine_power_factor, with_fine_power
+from .flat_redraw import Redrawn, redraw_flat_lights
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .holes import fill_holes
 from .init import initial_points, neighbour_scales
@@ -626,7 +626,7 @@ class Trainer:
     def _redraw_flat_lights(self, scene: SplatScene, backdrop: int, outlines: list[Outline],
                             weighed: list[LightPower]) -> tuple[SplatScene, Redrawn]:
         """Each light the views outlined on a wall or ceiling redrawn there as a flat,
-        even emitter at the power the training views drew (:mod:`gaslight_usd.flat_redraw`);
+        even emitter at the power the training views drew (:mod:`gaslight_usd.fit.flat_redraw`);
         the lights as the export's lights finder will see them (the views' white, the
         fit's backdrop, the lights it ``weighed``)."""
         if not self.room_planes or not outlines:

@@ -30,9 +30,10 @@ from typing import Any
 
 import numpy as np
 
-from .cameras import PinholeCamera, matrix_to_quaternion
-from .light_shapes import OUTLINED_OFF_SHARE, Panel
-from .splats import SplatScene, logit, rgb_to_sh_dc
+from ..cameras import PinholeCamera, matrix_to_quaternion
+from ..light_shapes import OUTLINED_OFF_SHARE, Panel
+from ..splats import SplatScene
+from .backdrop import concatenate
 
 CELL_SHARE = 0.02
 """The grid's spacing, as a share of the captured space's median depth (5 cm in a 2.5 m
@@ -86,21 +87,15 @@ def _grid(panel: Panel, cell: float, thin: float) -> tuple[np.ndarray, np.ndarra
 def _with_grid(head: SplatScene, pos: np.ndarray, rot: np.ndarray, scales: np.ndarray,
                colour: np.ndarray, back: SplatScene) -> SplatScene:
     """``head``, a grid of opaque splats of linear ``colour`` (3,), then ``back``."""
-    sh = np.zeros((len(pos), head.sh.shape[1], 3), np.float32)
-    sh[:, 0] = rgb_to_sh_dc(np.tile(np.asarray(colour, np.float32), (len(pos), 1)))
-    return SplatScene(
-        positions=np.concatenate([head.positions, pos.astype(np.float32), back.positions]),
-        rotations=np.concatenate([head.rotations, rot.astype(np.float32), back.rotations]),
-        log_scales=np.concatenate([head.log_scales, np.log(scales).astype(np.float32),
-                                   back.log_scales]),
-        opacity_logits=np.concatenate([head.opacity_logits, np.full(
-            len(pos), logit(np.array([OPACITY]))[0], np.float32), back.opacity_logits]),
-        sh=np.concatenate([head.sh, sh, back.sh]), metadata=dict(head.metadata))
+    grid = SplatScene.from_activated(pos, np.tile(np.asarray(colour, np.float64), (len(pos), 1)),
+                                     scales, np.full(len(pos), OPACITY), rotations=rot,
+                                     sh_degree=head.sh_degree)
+    return concatenate(concatenate(head, grid), back)
 
 
 def _view_sums(scene: SplatScene, cameras: Sequence[PinholeCamera], weights: np.ndarray
                ) -> np.ndarray:
-    from .render import render
+    from ..render import render
 
     return np.array([float(render(scene, cam).image.detach().cpu().numpy()
                            .reshape(-1, 3).astype(np.float64).sum(0) @ weights)
