@@ -409,6 +409,12 @@ def test_chain_scores_a_sunlit_patch_like_a_light():
     info = {"sun_patch": {"min_xz": [-0.45, 0.05], "max_xz": [0.45, 0.85]}}
     (patch,) = lit_regions(info)
     assert patch["name"] == "sun_patch" and lit_regions({}) == []
+    # the README's capture aims a darker frame at it as at the lights
+    from gaslight_usd.bench.suite_chain import dark_frame_targets
+
+    lights = [{"name": "window", "kind": "rectangle", "center": [2.5, 1.6, 0.2]}]
+    assert [t["name"] for t in dark_frame_targets({**info, "lights": lights})] == [
+        "window", "sun_patch"]
     position = np.array([0.0, 0.6, 0.45])
     dirs = latlong_directions(256, 128)
     t = -position[1] / np.minimum(dirs[..., 1], -1e-9)

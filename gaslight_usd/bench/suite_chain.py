@@ -191,6 +191,13 @@ def lit_regions(info: dict[str, Any]) -> list[dict[str, Any]]:
              "corners": [[x0, 0.0, z0], [x1, 0.0, z0], [x1, 0.0, z1], [x0, 0.0, z1]]}]
 
 
+def dark_frame_targets(info: dict[str, Any]) -> list[dict[str, Any]]:
+    """What the README's capture aims a darker frame at: each light, and each bright
+    surface every photo clips (a sunlit patch lights the room as a lamp does, and only a
+    frame that measured it pins its power)."""
+    return scene_lights(info) + lit_regions(info)
+
+
 def light_cone(light: dict[str, Any], position: np.ndarray) -> tuple[np.ndarray, float]:
     """Unit direction from ``position`` to the light and the cone half-angle (radians)
     that holds it, widened by :data:`CONE_MARGIN_DEG`."""
@@ -521,7 +528,7 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
 
         photos = work / "photos"
         extra = method == "recursive + extra dark frames"
-        chosen = dark_frame_photos(folder, photos, scene_lights(info), extra=extra)
+        chosen = dark_frame_photos(folder, photos, dark_frame_targets(info), extra=extra)
         if extra:
             poses = poses_with_dark_frames(folder, chosen, work / "sparse")
         hdr = uplift(photos, work / "run", method)
