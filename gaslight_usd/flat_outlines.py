@@ -47,11 +47,33 @@ UNCLIPPED_RATIO = 8.0
 light is what is over this many times the view's median luminance: the chain bench's
 windows are 15-50 times their rooms' walls, the light those windows and lamps throw on
 the walls a few times."""
+EDGE_LEVEL = 0.35
+"""...and, within each such region, only what is over this share of the region's level
+(its brightest tenth's floor): a blurred edge crosses half its light's level where the
+light ends, and a ceiling panel lights the ceiling round it over the median many times
+(its outline from true HDR views ran a quarter larger than the panel, 5-20 % for windows;
+``docs/measurements.md``, session 50)."""
+EDGE_QUANTILE = 0.9
 MIN_FILL = 0.8
 """An outline is a light's rectangle only where its lit cells fill this share of it."""
 MAX_OUTLINES = 32
 """Kept, the most lit cells first: a speckled set's photos clip hundreds of specks, and
 the splats' metadata carries them."""
+DEPTH_SWEEP = 0.05
+"""Each region's plane is swept this share of the cameras' distance either way: the room
+box's plane, fitted to the whole wall or ceiling, sat 5 cm under a ceiling panel, and
+seen from the side the views' outlines of it slid 7 cm apart (``docs/measurements.md``,
+session 50)."""
+DEPTH_STEPS = 10
+"""...in this many steps each way."""
+DEPTH_GAIN = 0.5
+"""...and moved only where the views' outlines' centres spread less than this share of
+their spread on the room box's plane."""
+FACE_ON_COS = 0.8
+"""...but not where the views see the region face on (the median |cos| of their rays to it
+over this): there the outlines hardly slide with the plane's depth, and their spread says
+nothing of it (windows seen across a room, |cos| 0.97-0.99, were moved up to 12 cm off
+their walls)."""
 SQUARE_COS = 0.2
 """Another plane whose normal is within this |cos| of square to this one sets the sides."""
 
@@ -160,12 +182,86 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         nu, nv = (np.ceil((hi - lo) / cell)).astype(int)
         gu = lo[0] + (np.arange(nu) + 0.5) * cell
         gv = lo[1] + (np.arange(nv) + 0.5) * cell
-        uu, vv = np.meshgrid(gu, gv, indexing="ij")
-        points = (offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v)
-        framed = np.zeros(len(points), np.int32)
-        seen = np.zeros(len(points), np.int32)
+        good = _votes(offset, normal, u, v, gu, gv, cameras, lit, front)
+        labels, count = ndimage.label(good, structure=np.ones((3, 3)))
+        if not count:
+            continue
+        sizes = np.bincount(labels.ravel(), minlength=count + 1)
+        boxes = ndimage.find_objects(labels)
+        largest = [lab for lab in np.argsort(-sizes[1:]) + 1 if sizes[lab] >= MIN_CELLS]
+        for lab in largest[:MAX_OUTLINES]:
+            su, sv = boxes[lab - 1]
+            # the plane's depth there, as the views agree on it (module docstring)
+            margin = max(3, int(np.ceil(0.25 * max(su.stop - su.start, sv.stop - sv.start))))
+            bu = slice(max(0, su.start - margin), min(nu, su.stop + margin))
+            bv = slice(max(0, sv.start - margin), min(nv, sv.stop + margin))
+            depth = _agreeing_offset(offset, normal, u, v, gu[bu], gv[bv], cameras, lit,
+                                     front, float(np.median(dist[front])))
+            if depth == offset:
+                region = labels[bu, bv] == lab
+            else:
+                moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front)
+                near, n_near = ndimage.label(moved, structure=np.ones((3, 3)))
+                if not n_near:
+                    continue
+                counts = np.bincount(near.ravel(), minlength=n_near + 1)
+                counts[0] = 0
+                region = near == int(np.argmax(counts))
+            outline = _outline_of(region, gu[bu], gv[bv], cell, depth, normal, u, v)
+            if outline is not None:
+                out.append(outline)
+    return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
+
+
+def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
+           gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
+           front: np.ndarray, agree: bool = False) -> np.ndarray:
+    """(len(gu), len(gv)) cells of the plane (``normal``, ``offset``) lit in the views
+    (:data:`MIN_VIEWS`, :data:`LIT_SHARE`); with ``agree``, (lit in every framing view,
+    lit in any) instead, stacked."""
+    uu, vv = np.meshgrid(gu, gv, indexing="ij")
+    points = offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
+    framed = np.zeros(len(points), np.int32)
+    seen = np.zeros(len(points), np.int32)
+    for cam, mask, ahead in zip(cameras, lit, front, strict=True):
+        if not ahead or mask is None:
+            continue
+        uv, z = cam.project(points)
+        h, w = mask.shape[:2]
+        uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
+        x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
+        y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
+        inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        framed += inside
+        seen[inside] += mask[y[inside], x[inside]].astype(np.int32)
+    shape = (len(gu), len(gv))
+    if agree:
+        judged = framed >= MIN_VIEWS
+        return np.stack([(judged & (seen == framed) & (seen > 0)).reshape(shape),
+                         (judged & (seen > 0)).reshape(shape)])
+    good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
+    return good.reshape(shape)
+
+
+def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray,
+                     gu: np.ndarray, gv: np.ndarray, cameras: Sequence[PinholeCamera],
+                     lit: Sequence[np.ndarray | None], front: np.ndarray,
+                     distance: float) -> float:
+    """The plane offset within :data:`DEPTH_SWEEP` of the cameras' ``distance`` where the
+    views' lit regions on the grid (cell centres ``gu``, ``gv``) coincide: the least spread
+    of their centres, over the views that frame the whole grid (seen from apart, the
+    views' outlines on a plane at the wrong depth slide apart). ``offset`` unless that
+    spread is under :data:`DEPTH_GAIN` of the spread there."""
+    uu, vv = np.meshgrid(gu, gv, indexing="ij")
+    flat = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    steps = np.linspace(-DEPTH_SWEEP, DEPTH_SWEEP, 2 * DEPTH_STEPS + 1) * distance
+    lit_cells = []  # per step, per view: its lit cells; None where it frames part only
+    for step in steps:
+        points = (offset + step) * normal + flat[:, :1] * u + flat[:, 1:] * v
+        row: list[np.ndarray | None] = []
         for cam, mask, ahead in zip(cameras, lit, front, strict=True):
             if not ahead or mask is None:
+                row.append(None)
                 continue
             uv, z = cam.project(points)
             h, w = mask.shape[:2]
@@ -173,31 +269,51 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
             y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
             inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
-            framed += inside
-            seen[inside] += mask[y[inside], x[inside]].astype(np.int32)
-        good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
-        labels, count = ndimage.label(good.reshape(nu, nv), structure=np.ones((3, 3)))
-        if not count:
-            continue
-        sizes = np.bincount(labels.ravel(), minlength=count + 1)
-        for lab, (su, sv) in enumerate(ndimage.find_objects(labels), start=1):
-            if sizes[lab] < MIN_CELLS:
-                continue
-            box = (su.stop - su.start) * (sv.stop - sv.start)
-            a0, a1 = gu[su.start] - cell / 2, gu[su.stop - 1] + cell / 2
-            b0, b1 = gv[sv.start] - cell / 2, gv[sv.stop - 1] + cell / 2
-            centre = offset * normal + (a0 + a1) / 2 * u + (b0 + b1) / 2 * v
-            out.append(Outline(centre=centre, normal=normal.copy(), u=u.copy(), v=v.copy(),
-                               half_size=np.array([(a1 - a0) / 2, (b1 - b0) / 2]),
-                               cells=int(sizes[lab]), fill=float(sizes[lab] / box)))
-    return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
+            row.append(mask[y, x] if inside.all() else None)
+        lit_cells.append(row)
+    # one set of views at every depth, each framing the whole grid and seeing the light
+    chosen = [k for k in range(len(cameras))
+              if all(row[k] is not None and row[k].sum() >= MIN_CELLS for row in lit_cells)]
+    if len(chosen) < MIN_VIEWS:
+        return offset
+    middle = offset * normal + float(np.mean(gu)) * u + float(np.mean(gv)) * v
+    rays = np.array([middle - cameras[k].center for k in chosen])
+    facing = np.abs(rays @ normal) / np.linalg.norm(rays, axis=1)
+    if float(np.median(facing)) > FACE_ON_COS:
+        return offset  # seen face on, the outline hardly moves with the plane's depth
+    spreads = []
+    for row in lit_cells:
+        centres = np.array([flat[row[k]].mean(axis=0) for k in chosen])
+        spreads.append(float(np.sqrt(((centres - centres.mean(0)) ** 2).sum(1).mean())))
+    best = int(np.argmin(spreads))
+    if spreads[best] > DEPTH_GAIN * spreads[DEPTH_STEPS]:
+        return offset
+    return float(offset + steps[best])
+
+
+def _outline_of(region: np.ndarray, gu: np.ndarray, gv: np.ndarray, cell: float,
+                offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray
+                ) -> Outline | None:
+    """The outline bounding the lit cells ``region`` of a grid (cell centres ``gu``,
+    ``gv``) on the plane (``normal``, ``offset``)."""
+    cells = int(region.sum())
+    if cells < MIN_CELLS:
+        return None
+    rows, cols = np.nonzero(region)
+    a0, a1 = gu[rows.min()] - cell / 2, gu[rows.max()] + cell / 2
+    b0, b1 = gv[cols.min()] - cell / 2, gv[cols.max()] + cell / 2
+    box = (rows.max() - rows.min() + 1) * (cols.max() - cols.min() + 1)
+    centre = offset * normal + (a0 + a1) / 2 * u + (b0 + b1) / 2 * v
+    return Outline(centre=centre, normal=normal.copy(), u=u.copy(), v=v.copy(),
+                   half_size=np.array([(a1 - a0) / 2, (b1 - b0) / 2]), cells=cells,
+                   fill=float(cells / box))
 
 
 def lit_masks(images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
               weights: np.ndarray) -> list[np.ndarray]:
     """Per view where it saw a light: its clipped pixels (a clip floor over 0), or, in a
     view that clipped nothing, its pixels over :data:`UNCLIPPED_RATIO` times its median
-    luminance (``weights``).
+    luminance (``weights``), cut to its regions' edges (:data:`EDGE_LEVEL`).
 
     Not over the view's white, as the sightings read an unclipped view: a true HDR view's
     white is any level, and over it the outlines took whole lit ceilings with the panels
@@ -208,5 +324,17 @@ def lit_masks(images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
             out.append(np.asarray(floor) > 0)
             continue
         lum = np.asarray(image, np.float64) @ np.asarray(weights, np.float64)
-        out.append(lum > UNCLIPPED_RATIO * max(float(np.median(lum)), 1e-30))
+        out.append(_to_edges(lum, lum > UNCLIPPED_RATIO * max(float(np.median(lum)), 1e-30)))
     return out
+
+
+def _to_edges(lum: np.ndarray, lit: np.ndarray) -> np.ndarray:
+    """``lit`` (H, W) with each connected region cut to what is over :data:`EDGE_LEVEL`
+    of the region's level (:data:`EDGE_QUANTILE` of its luminance)."""
+    labels, count = ndimage.label(lit)
+    if not count:
+        return lit
+    level = ndimage.labeled_comprehension(lum, labels, np.arange(1, count + 1),
+                                          lambda x: np.quantile(x, EDGE_QUANTILE), float, 0.0)
+    floor = np.concatenate([[np.inf], EDGE_LEVEL * np.asarray(level)])[labels]
+    return lit & (lum >= floor)

@@ -135,10 +135,7 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
         outline = _holding_outline(position, normal, planes[k][1], outlines,
                                    ON_PLANE_SHARE * median_depth)
         if outline is not None:
-            return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
-                         normal=normal.copy(), u=outline.u.copy(),
-                         v=np.cross(outline.u, normal), half_size=outline.half_size.copy(),
-                         plane_offset=float(offsets[k]), outlined=True)
+            return outlined_panel(outline, median_depth, float(offsets[k]))
     if not on_plane:
         return None
     # no square plane: the light's own longest direction in the plane
@@ -152,6 +149,15 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
     centre = position - offsets[k] * normal + NUDGE_SHARE * median_depth * normal
     return Panel(centre=centre, normal=normal.copy(), u=u, v=v, half_size=half,
                  plane_offset=float(offsets[k]))
+
+
+def outlined_panel(outline: Outline, median_depth: float, plane_offset: float = 0.0) -> Panel:
+    """The panel an outline gives: its rectangle, nudged off its plane as every panel is
+    (``plane_offset``: how far the light it was found for was from the plane)."""
+    normal = np.asarray(outline.normal, np.float64)
+    return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
+                 normal=normal.copy(), u=outline.u.copy(), v=np.cross(outline.u, normal),
+                 half_size=outline.half_size.copy(), plane_offset=plane_offset, outlined=True)
 
 
 def _near_compact(position: np.ndarray, compact: np.ndarray | None, reach: float) -> bool:

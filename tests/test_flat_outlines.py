@@ -164,3 +164,47 @@ def test_a_ragged_lit_region_is_no_lights_rectangle():
     assert panel_of(position, extent, axes, PLANES, 2.5, [ragged]) is None
     clean = window_outline(plane_outlines(PLANES, cams, [window_mask(c) for c in cams]))
     assert clean.clean and clean.fill > 0.95
+
+
+PANEL_CENTRE = np.array([-1.2, 3.0, -0.6])
+PANEL_HALF = 0.2
+
+
+def panel_mask(cam: PinholeCamera) -> np.ndarray:
+    """Where ``cam``'s pixel rays meet a 0.4 m ceiling panel at y = 3."""
+    dirs = cam.ray_directions()
+    t = (3.0 - cam.center[1]) / np.where(dirs[..., 1] > 1e-6, dirs[..., 1], np.nan)
+    hit = cam.center + dirs * t[..., None]
+    with np.errstate(invalid="ignore"):
+        return ((np.abs(hit[..., 0] - PANEL_CENTRE[0]) <= PANEL_HALF)
+                & (np.abs(hit[..., 2] - PANEL_CENTRE[2]) <= PANEL_HALF))
+
+
+def test_a_ceiling_panel_is_outlined_where_it_is_though_the_ceiling_plane_is_off():
+    """The room box's ceiling, fitted to the whole ceiling, 5 cm under the panel: seen
+    from one side, each view's outline lands elsewhere on that plane; the plane's depth
+    where the views agree puts the panel back."""
+    from gaslight_usd import flat_outlines
+
+    cams = [look_at(c, PANEL_CENTRE) for c in
+            ([0.5, 1.4, 0.5], [1.0, 1.5, -1.0], [0.2, 1.3, -2.0], [1.5, 1.6, 0.0],
+             [0.8, 1.2, -0.2])]
+    masks = [panel_mask(c) for c in cams]
+    assert all(m.any() for m in masks)
+    planes = [(np.array([0.0, -1.0, 0.0]), -2.95)] + PLANES[2:]
+
+    def ceiling(outlines):
+        return max((o for o in outlines if o.normal[1] < -0.9), key=lambda o: o.cells)
+
+    found = ceiling(plane_outlines(planes, cams, masks))
+    np.testing.assert_allclose(found.centre[[0, 2]], PANEL_CENTRE[[0, 2]], atol=0.015)
+    assert abs(found.centre[1] - 3.0) < 0.015
+    np.testing.assert_allclose(found.half_size, PANEL_HALF, atol=0.02)
+    # on the room box's plane as it is, the outline slides off the panel
+    was = flat_outlines.DEPTH_SWEEP
+    try:
+        flat_outlines.DEPTH_SWEEP = 0.0
+        off = ceiling(plane_outlines(planes, cams, masks))
+    finally:
+        flat_outlines.DEPTH_SWEEP = was
+    assert np.linalg.norm(off.centre[[0, 2]] - PANEL_CENTRE[[0, 2]]) > 0.03
