@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 from test_flat_outlines import look_at as outlines_look_at
+from test_flat_outlines import window_mask
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.fit.flat_redraw import redraw_flat_lights
@@ -104,3 +105,95 @@ def test_nothing_is_redrawn_where_no_camera_frames_the_panel():
     out, report = redraw_flat_lights(scene, [panel()], [window], behind, white=1.0,
                                      median_depth=2.5, weights=WEIGHTS, tail=tail)
     assert report.panels == [] and out is scene
+
+
+def test_bright_floaters_in_front_of_the_window_join_it_a_lamp_and_a_plant_stay():
+    """A fit leaves window-bright splats floating in front of a window (clipped photos
+    bound them only from below); every view sees them over the window, one 0.3 m off it
+    is a fog to a probe beside it. They are the window's light and are redrawn with it;
+    another light in front of it (a lamp) and dim things (a plant) are not."""
+    scene, window, tail = scene_with_window()
+    rng = np.random.default_rng(9)
+    n = 12
+    floaters = np.column_stack([2.5 - rng.uniform(0.2, 0.5, n),
+                                CENTRE[1] + rng.uniform(-0.3, 0.3, n),
+                                CENTRE[2] + rng.uniform(-0.4, 0.4, n)])
+    lamp = CENTRE + [-0.4, -0.3, 0.3] + rng.normal(0, 0.01, (4, 3))
+    plant = CENTRE + [-0.3, -0.4, -0.3] + rng.normal(0, 0.03, (6, 3))
+    extra = SplatScene.from_activated(
+        np.concatenate([floaters, lamp, plant]),
+        np.concatenate([np.full((n, 3), 16.0), np.full((4, 3), 500.0), np.full((6, 3), 0.2)]),
+        np.full((n + 10, 3), 0.03), np.concatenate([np.full(n, 0.2), np.full(10, 0.9)]))
+    head = scene.subset(np.arange(scene.count - tail))
+    back = scene.subset(np.arange(scene.count - tail, scene.count))
+    from gaslight_usd.fit.backdrop import concatenate
+
+    full = concatenate(concatenate(head, extra), back)
+    lamp_idx = np.arange(head.count + n, head.count + n + 4)
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    out, report = redraw_flat_lights(full, [panel()], [window], cams, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail,
+                                     other_lights=[lamp_idx])
+    assert len(report.panels) == 1
+    kept = {tuple(p) for p in out.positions.round(5).tolist()}
+    first = head.count  # the floaters, the lamp, the plant, as the scene stores them
+    stored = full.positions.round(5).tolist()
+    assert not any(tuple(p) in kept for p in stored[first:first + n])
+    assert all(tuple(p) in kept for p in stored[first + n:first + n + 10])
+    before, after = sums(full, cams), sums(out, cams)
+    assert abs(after.sum() / before.sum() - 1.0) < 0.01
+    # nothing window-bright is left floating in front of it but the lamp
+    d = 2.5 - out.positions[:, 0]
+    lum = out.base_colours @ WEIGHTS
+    front = (d > 0.1) & (lum > 1.0)
+    assert front.sum() == 4 and np.all(lum[front] > 100.0)
+
+
+def test_a_window_no_light_holds_is_redrawn_from_its_outline_alone():
+    """The fit's light for a window can sit off in the room, or be missing; the outline
+    the views drew (and one view measured) is the window all the same: with no splats of
+    its own, what lies in its rectangle on the wall is redrawn."""
+    scene, window, tail = scene_with_window()
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    out, report = redraw_flat_lights(scene, [panel()], [np.zeros(0, np.int64)], cams,
+                                     white=1.0, median_depth=2.5, weights=WEIGHTS, tail=tail)
+    assert len(report.panels) == 1 and report.panels[0]["replaced_splats"] >= len(window)
+    before, after = sums(scene, cams), sums(out, cams)
+    assert abs(after.sum() / before.sum() - 1.0) < 0.01
+    near = look_at(CENTRE + [-0.4, 0.0, 0.0], CENTRE)
+    with torch.no_grad():
+        lum = render(out, near).image.numpy()[24:48, 32:64] @ WEIGHTS
+    assert float(lum.std() / lum.mean()) < 0.05
+
+
+def test_a_window_a_view_measured_takes_the_level_the_views_read_inside_it():
+    """The fit's blobs draw the window brighter than it is (what the training views sum
+    over it overshoots); the views that measured it read its level: the grid takes that
+    (and its colour), not the sums' level. A view that clipped there does not count."""
+    scene, window, tail = scene_with_window()
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    true_rgb = np.array([9.0, 10.0, 11.0])
+    images, floors = [], []
+    for cam in cams:
+        lit = window_mask(cam)
+        images.append(np.where(lit[..., None], true_rgb, 0.3).astype(np.float32))
+        floors.append(None)
+    images[0] = np.where(window_mask(cams[0])[..., None], 1.0, 0.3).astype(np.float32)
+    floors[0] = window_mask(cams[0]).astype(np.float32)  # this photo clipped the window
+    out, report = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail,
+                                     images=images, floors=floors)
+    entry = report.panels[0]
+    assert entry["level_from"] == "views"
+    assert abs(entry["radiance"] / float(true_rgb @ WEIGHTS) - 1.0) < 0.01
+    grid = out.base_colours.max(axis=1) > 1.0
+    grid[-tail:] = False
+    colour = out.base_colours[grid].mean(axis=0)
+    np.testing.assert_allclose(colour / colour[1], true_rgb / true_rgb[1], rtol=0.01)
+    # without the views' reading it keeps the sums' level, which the blobs overdraw
+    _, plain = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
+                                  median_depth=2.5, weights=WEIGHTS, tail=tail)
+    assert plain.panels[0]["level_from"] == "splats"

@@ -10,10 +10,16 @@ Where the views outlined the light's rectangle on a wall or ceiling
 (:mod:`gaslight_usd.flat_outlines`, :func:`gaslight_usd.light_shapes.panel_of`), its
 splats, every splat in the rectangle within :data:`SLAB_SHARE` of the plane, and the
 bright ones round its edge, are replaced by a grid of flat, opaque splats on the
-rectangle, one colour (the replaced splats' power-weighted chroma), at the level that
-keeps what the training views draw (their sums over the views that frame it, solved in
-closed form: the grid is opaque, so a view's sum is linear in its level). The light's
-power stays what the fit made it; only its shape changes. The fit redraws only lights a
+rectangle, one colour, at the level the training views that measured it read inside it
+(:func:`measured_level`: the fit's own drawing of it overshot that by 0.1-0.3 stops from
+true HDR views, ``docs/measurements.md``, session 50); where no view measured it whole, in
+the replaced splats' power-weighted chroma at the level that keeps what the training
+views draw (their sums over the views that frame it, solved in closed form: the grid is
+opaque, so a view's sum is linear in its level). Then the
+splats over the white floating in front of the rectangle, within its prism, that are not
+another light many times brighter (:data:`LAMP_RATIO`), join it and the level is solved
+again: a fit leaves window-bright floaters there that every view sees over the window,
+and a probe beside it sees a fog. The fit redraws only lights a
 view measured (a true HDR view, merged brackets, a darker frame:
 :func:`gaslight_usd.fit.power.light_sighting`): where every photo clipped a window its
 power is the uplift's fill, a lower bound, and drawn flat it lost more of it near by.
@@ -55,6 +61,15 @@ panel)."""
 THIN_SHARE = 0.001
 """The grid's splats' thickness, as a share of the median depth."""
 OPACITY = 0.99
+SAMPLES = 24
+"""Points along each side of the rectangle where the views' reading of it is taken."""
+INSET = 0.2
+"""...kept this share of its half-size in from each edge: its blurred border, and the
+outline's few per cent of slack, are the wall's."""
+LAMP_RATIO = 4.0
+"""Another light in front of the rectangle is a lamp, and stays, where its splats' median
+is over this many times the redrawn level (a lamp is hundreds of times a window; the
+fit's window-bright floaters a few)."""
 
 
 @dataclass
@@ -102,6 +117,79 @@ def _view_sums(scene: SplatScene, cameras: Sequence[PinholeCamera], weights: np.
                      for cam in cameras])
 
 
+
+def measured_level(panel: Panel, cameras: Sequence[PinholeCamera],
+                   images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
+                   weights: np.ndarray, white: float) -> tuple[float, np.ndarray] | None:
+    """(luminance, chroma (3,)) the views read inside ``panel`` (its middle, :data:`INSET`
+    in from each edge, off its blurred border): per view that frames it whole, clipped
+    nothing there and read it over twice the ``white``, the mean of those pixels; the
+    median over such views (one a lamp or a plant stood in front of is outvoted). None
+    where no view measured it whole."""
+    n = SAMPLES
+    a = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    aa, bb = np.meshgrid(a, a, indexing="ij")
+    scale = 1.0 - INSET
+    points = (panel.centre + (aa.reshape(-1, 1) * panel.half_size[0] * scale) * panel.u
+              + (bb.reshape(-1, 1) * panel.half_size[1] * scale) * panel.v)
+    means = []
+    for cam, image, floor in zip(cameras, images, floors, strict=True):
+        if float((cam.center - panel.centre) @ panel.normal) <= 0:
+            continue
+        uv, z = cam.project(points)
+        h, w = image.shape[:2]
+        x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
+        y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
+        if not bool(np.all((z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h))):
+            continue
+        if floor is not None and bool((np.asarray(floor)[y, x] > 0).any()):
+            continue
+        rgb = np.asarray(image, np.float64)[y, x].mean(axis=0)
+        if float(rgb @ weights) > 2.0 * white:
+            means.append(rgb)
+    if not means:
+        return None
+    rgb = np.median(np.asarray(means), axis=0)
+    level = float(rgb @ weights)
+    return level, rgb / level
+
+
+def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.ndarray,
+           radiance: np.ndarray, white: float, median_depth: float,
+           views: Sequence[PinholeCamera], weights: np.ndarray, tail: int,
+           measured: tuple[float, np.ndarray] | None = None):
+    """(level, the scene at a level, the kept splats, the grid's size) for ``replace``
+    redrawn as a grid on ``panel`` at the ``measured`` (level, chroma), or else at the
+    level keeping the ``views``' sums in the replaced splats' chroma; None where nothing
+    bright is replaced or no level keeps them."""
+    lit = replace & (radiance > white)
+    if not lit.any():
+        return None
+    power = (colours[lit] * scene.opacities[lit, None]).sum(0)
+    chroma = power / max(float(power @ weights), 1e-30)
+    grid = _grid(panel, CELL_SHARE * median_depth, THIN_SHARE * median_depth)
+    keep = np.flatnonzero(~replace)
+    head = scene.subset(keep[keep < len(replace) - tail])
+    back = scene.subset(keep[keep >= len(replace) - tail])
+
+    if measured is not None:
+        chroma = measured[1]
+
+    def with_level(level: float) -> SplatScene:
+        return _with_grid(head, *grid, chroma * level, back)
+
+    if measured is not None:
+        return measured[0], with_level, keep, len(grid[0])
+    before = _view_sums(scene, views, weights)
+    dark = _view_sums(with_level(0.0), views, weights)
+    unit = _view_sums(with_level(1.0), views, weights) - dark
+    if float(unit.sum()) <= 0:
+        return None
+    level = float((before - dark).sum() / unit.sum())
+    if not np.isfinite(level) or level <= 0:
+        return None
+    return level, with_level, keep, len(grid[0])
+
 def _framing(panel: Panel, cameras: Sequence[PinholeCamera]) -> list[PinholeCamera]:
     """The cameras in front of ``panel`` whose frame holds its centre."""
     out = []
@@ -117,15 +205,21 @@ def _framing(panel: Panel, cameras: Sequence[PinholeCamera]) -> list[PinholeCame
 def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
                        light_splats: Sequence[np.ndarray], cameras: Sequence[PinholeCamera],
                        white: float, median_depth: float, weights: np.ndarray,
-                       tail: int = 0) -> tuple[SplatScene, Redrawn]:
+                       tail: int = 0, other_lights: Sequence[np.ndarray] = (),
+                       images: Sequence[np.ndarray] | None = None,
+                       floors: Sequence[np.ndarray | None] | None = None
+                       ) -> tuple[SplatScene, Redrawn]:
     """``scene`` with each of ``panels`` (the rectangle of the light whose splats are
     ``light_splats``) redrawn as a flat, even emitter (module docstring), at the level
     that keeps the sums of the ``cameras`` that frame it; ``white``: the views' white
     (what is over it is bright); ``weights``: luminance weights; ``tail``: the last
-    splats (the fit's backdrop) are never replaced and stay last."""
+    splats (the fit's backdrop) are never replaced and stay last; ``images`` and
+    ``floors``: the ``cameras``' HDR views and clip floors, whose reading inside the
+    rectangle sets its level where one measured it (:func:`measured_level`)."""
     report = Redrawn()
     weights = np.asarray(weights, np.float64)
     owns = [np.asarray(own, np.int64) for own in light_splats]
+    others = [np.asarray(extra, np.int64) for extra in other_lights]
     done: list[np.ndarray] = []
     for k, panel in enumerate(panels):
         if any(np.allclose(panel.centre, c) for c in done):
@@ -153,41 +247,43 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         replace[over] = True
         if tail:
             replace[len(replace) - tail:] = False
-        lit = replace & (radiance > white)
-        if not lit.any():
+        measured = (None if images is None else
+                    measured_level(panel, cameras, images,
+                                   floors if floors is not None else [None] * len(images),
+                                   weights, white))
+        solved = _solve(scene, panel, replace, colours, radiance, white, median_depth, views,
+                        weights, tail, measured)
+        if solved is None:
             continue
-        power = (colours[lit] * scene.opacities[lit, None]).sum(0)
-        chroma = power / max(float(power @ weights), 1e-30)
-        gpos, grot, gscale = _grid(panel, CELL_SHARE * median_depth,
-                                   THIN_SHARE * median_depth)
-        keep = np.flatnonzero(~replace)
-        head = scene.subset(keep[keep < len(replace) - tail])
-        back = scene.subset(keep[keep >= len(replace) - tail])
-
-        grid = (gpos, grot, gscale)
-
-        def with_level(level: float, head=head, back=back, grid=grid, chroma=chroma
-                       ) -> SplatScene:
-            return _with_grid(head, *grid, chroma * level, back)
-
-        before = _view_sums(scene, views, weights)
-        dark = _view_sums(with_level(0.0), views, weights)
-        unit = _view_sums(with_level(1.0), views, weights) - dark
-        if float(unit.sum()) <= 0:
-            continue
-        level = float((before - dark).sum() / unit.sum())
-        if not np.isfinite(level) or level <= 0:
-            continue
+        # window-bright splats floating in front of it are its light too: the clipped
+        # photos bound them only from below, every view sees them over the window, and
+        # a probe beside it sees a fog; a lamp there (another light, many times brighter)
+        # is not
+        ahead = (halo & (d > 0) & (d <= OFF_SHARE * median_depth)
+                 & (radiance > max(white, HALO_SHARE * solved[0])) & ~replace)
+        for extra in others:
+            if len(extra) and np.median(radiance[extra]) > LAMP_RATIO * solved[0]:
+                ahead[extra] = False
+        if tail:
+            ahead[len(replace) - tail:] = False
+        if ahead.any():
+            wider = _solve(scene, panel, replace | ahead, colours, radiance, white,
+                           median_depth, views, weights, tail, measured)
+            if wider is not None:
+                replace, solved = replace | ahead, wider
+        level, with_level, keep, grid_splats = solved
         scene = with_level(level)
         done.append(panel.centre)
         remap = np.full(len(replace), -1, np.int64)
         front = keep[keep < len(replace) - tail]
         remap[front] = np.arange(len(front))  # the grid follows them, then the tail
         owns = [remap[o][remap[o] >= 0] for o in owns]
+        others = [remap[o][remap[o] >= 0] for o in others]
         report.panels.append({"centre": [round(float(x), 4) for x in panel.centre],
                               "width": round(float(2 * panel.half_size[0]), 4),
                               "height": round(float(2 * panel.half_size[1]), 4),
                               "replaced_splats": int(replace.sum()),
-                              "grid_splats": int(len(gpos)),
-                              "radiance": round(level, 5), "views": len(views)})
+                              "grid_splats": int(grid_splats),
+                              "radiance": round(level, 5), "views": len(views),
+                              "level_from": "views" if measured is not None else "splats"})
     return scene, report

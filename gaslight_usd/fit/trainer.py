@@ -40,7 +40,7 @@ from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..flat_outlines import Outline, lit_masks, plane_outlines
-from ..light_shapes import panel_of
+from ..light_shapes import outlined_panel, panel_of
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
@@ -656,16 +656,27 @@ class Trainer:
         # a light every view clipped keeps its fitted shape: its power is the uplift's
         # fill, a lower bound (:mod:`.power`), and drawn flat it would only lose more of
         # it near by (docs/measurements.md, session 49)
-        pairs = []
+        pairs, others = [], []
         for panel, light in zip(panels, search.lights, strict=True):
             if panel is not None and panel.outlined and light_sighting(
                     light.position, views, images, floors, weights, search.white) == "measured":
                 pairs.append((panel, light.splats))
+            else:
+                others.append(light.splats)
+        # a window the views outlined and one measured, that no light of the finder's
+        # holds (its splats smeared off into the room, or taken for the light it throws):
+        # the rectangle is its light all the same
+        for outline in outlines:
+            panel = outlined_panel(outline, depth)
+            if outline.clean and not any(np.allclose(panel.centre, p.centre) for p, _ in pairs) \
+                    and light_sighting(outline.centre, views, images, floors, weights,
+                                       search.white) == "measured":
+                pairs.append((panel, np.zeros(0, np.int64)))
         if not pairs:
             return scene, Redrawn()
         scene, redrawn = redraw_flat_lights(
             scene, [p for p, _ in pairs], [i for _, i in pairs], views, search.white, depth,
-            weights, tail=backdrop)
+            weights, tail=backdrop, other_lights=others, images=images, floors=floors)
         if redrawn.panels:
             self.progress.message(f"redrew {len(redrawn.panels)} window(s) or panel(s) as "
                                   "flat emitters on their rectangles")
