@@ -213,34 +213,37 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
     return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
 
 
+def _look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Per point (N, 3): whether ``cam`` frames it, and ``mask`` (H, W, at any size)
+    there (False where it does not frame it)."""
+    uv, z = cam.project(points)
+    h, w = mask.shape[:2]
+    uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
+    x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
+    y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
+    inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    value = np.zeros(len(points), bool)
+    value[inside] = mask[y[inside], x[inside]]
+    return inside, value
+
+
 def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
            gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
-           front: np.ndarray, agree: bool = False) -> np.ndarray:
+           front: np.ndarray) -> np.ndarray:
     """(len(gu), len(gv)) cells of the plane (``normal``, ``offset``) lit in the views
-    (:data:`MIN_VIEWS`, :data:`LIT_SHARE`); with ``agree``, (lit in every framing view,
-    lit in any) instead, stacked."""
+    (:data:`MIN_VIEWS`, :data:`LIT_SHARE`)."""
     uu, vv = np.meshgrid(gu, gv, indexing="ij")
     points = offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
     framed = np.zeros(len(points), np.int32)
     seen = np.zeros(len(points), np.int32)
     for cam, mask, ahead in zip(cameras, lit, front, strict=True):
-        if not ahead or mask is None:
-            continue
-        uv, z = cam.project(points)
-        h, w = mask.shape[:2]
-        uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
-        x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
-        y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
-        inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
-        framed += inside
-        seen[inside] += mask[y[inside], x[inside]].astype(np.int32)
-    shape = (len(gu), len(gv))
-    if agree:
-        judged = framed >= MIN_VIEWS
-        return np.stack([(judged & (seen == framed) & (seen > 0)).reshape(shape),
-                         (judged & (seen > 0)).reshape(shape)])
+        if ahead and mask is not None:
+            inside, value = _look_up(cam, mask, points)
+            framed += inside
+            seen += value
     good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
-    return good.reshape(shape)
+    return good.reshape(len(gu), len(gv))
 
 
 def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray,
@@ -260,16 +263,9 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
         points = (offset + step) * normal + flat[:, :1] * u + flat[:, 1:] * v
         row: list[np.ndarray | None] = []
         for cam, mask, ahead in zip(cameras, lit, front, strict=True):
-            if not ahead or mask is None:
-                row.append(None)
-                continue
-            uv, z = cam.project(points)
-            h, w = mask.shape[:2]
-            uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
-            x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
-            y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
-            inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
-            row.append(mask[y, x] if inside.all() else None)
+            inside, value = (_look_up(cam, mask, points) if ahead and mask is not None
+                             else (None, None))
+            row.append(value if inside is not None and inside.all() else None)
         lit_cells.append(row)
     # one set of views at every depth, each framing the whole grid and seeing the light
     chosen = [k for k in range(len(cameras))

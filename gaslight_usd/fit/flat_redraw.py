@@ -10,12 +10,14 @@ Where the views outlined the light's rectangle on a wall or ceiling
 (:mod:`gaslight_usd.flat_outlines`, :func:`gaslight_usd.light_shapes.panel_of`), its
 splats, every splat in the rectangle within :data:`SLAB_SHARE` of the plane, and the
 bright ones round its edge, are replaced by a grid of flat, opaque splats on the
-rectangle, one colour, at the level the training views that measured it read inside it
-(:func:`measured_level`: the fit's own drawing of it overshot that by 0.1-0.3 stops from
-true HDR views, ``docs/measurements.md``, session 50); where no view measured it whole, in
-the replaced splats' power-weighted chroma at the level that keeps what the training
-views draw (their sums over the views that frame it, solved in closed form: the grid is
-opaque, so a view's sum is linear in its level). Then the
+rectangle, one colour, at the level that keeps what the training views draw (their sums
+over the views that frame it, solved in closed form: the grid is opaque, so a view's sum
+is linear in its level), or the level the views that measured it read inside it where
+that is lower, in their colour (:func:`measured_level`). Each overshoots in its way: the
+fit's blobs draw a window 0.1-0.3 stops over what the views read (true HDR views), and
+the views' reading over a rectangle the clipped photos outlined too large (their halo
+round a ceiling panel, +40 % in area) puts too much light in it (``docs/measurements.md``,
+session 50). Then the
 splats over the white floating in front of the rectangle, within its prism, that are not
 another light many times brighter (:data:`LAMP_RATIO`), join it and the level is solved
 again: a fit leaves window-bright floaters there that every view sees over the window,
@@ -159,9 +161,9 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
            views: Sequence[PinholeCamera], weights: np.ndarray, tail: int,
            measured: tuple[float, np.ndarray] | None = None):
     """(level, the scene at a level, the kept splats, the grid's size) for ``replace``
-    redrawn as a grid on ``panel`` at the ``measured`` (level, chroma), or else at the
-    level keeping the ``views``' sums in the replaced splats' chroma; None where nothing
-    bright is replaced or no level keeps them."""
+    redrawn as a grid on ``panel`` at the level keeping the ``views``' sums, or the
+    ``measured`` (level, chroma) where that is lower (in its chroma either way); None
+    where nothing bright is replaced or no level fits."""
     lit = replace & (radiance > white)
     if not lit.any():
         return None
@@ -178,14 +180,16 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     def with_level(level: float) -> SplatScene:
         return _with_grid(head, *grid, chroma * level, back)
 
-    if measured is not None:
-        return measured[0], with_level, keep, len(grid[0])
     before = _view_sums(scene, views, weights)
     dark = _view_sums(with_level(0.0), views, weights)
     unit = _view_sums(with_level(1.0), views, weights) - dark
-    if float(unit.sum()) <= 0:
-        return None
-    level = float((before - dark).sum() / unit.sum())
+    level = float((before - dark).sum() / unit.sum()) if float(unit.sum()) > 0 else np.nan
+    if measured is not None:
+        # the lower of the two: the views' reading times a rectangle the clipped photos
+        # outlined too large (their halo) overshoots, and so do the fit's blobs where
+        # the rectangle is right (module docstring)
+        level = measured[0] if not np.isfinite(level) or level <= 0 else min(level,
+                                                                           measured[0])
     if not np.isfinite(level) or level <= 0:
         return None
     return level, with_level, keep, len(grid[0])
