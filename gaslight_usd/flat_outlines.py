@@ -13,6 +13,12 @@ The lit cells' connected regions, of at least :data:`MIN_CELLS` cells, are the p
 **outlines**: rectangles with sides along the room's other planes where one is square to
 this one (windows and panels are set square to their walls), bounding the region.
 
+The room box's plane is fitted to the whole wall or ceiling, and a ceiling seen at
+grazing angles can sit a few centimetres off the panel in it; seen from one side, each
+view's outline then lands elsewhere on the plane. So a region the views see obliquely is
+looked up again at depths around the plane (:data:`DEPTH_SWEEP`), and kept where the
+centres of the views' outlines of it coincide (:func:`_agreeing_offset`).
+
 The fit stores them in the splats' metadata (``flat_outlines``); the rig's panels take a
 light's rectangle from the outline that holds it (:func:`gaslight_usd.light_shapes.panel_of`).
 Measured by ``gaslight2usd bench --suite chain`` (``rect_iou_<light>``,

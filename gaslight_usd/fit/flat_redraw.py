@@ -17,17 +17,16 @@ that is lower, in their colour (:func:`measured_level`). Each overshoots in its 
 fit's blobs draw a window 0.1-0.3 stops over what the views read (true HDR views), and
 the views' reading over a rectangle the clipped photos outlined too large (their halo
 round a ceiling panel, +40 % in area) puts too much light in it (``docs/measurements.md``,
-session 50). Then the
-splats over the white floating in front of the rectangle, within its prism, that are not
-another light many times brighter (:data:`LAMP_RATIO`), join it and the level is solved
-again: a fit leaves window-bright floaters there that every view sees over the window,
-and a probe beside it sees a fog. The fit redraws only lights a
+session 50). Then the splats over the white floating in front of the rectangle, within
+its prism, that are not another light many times brighter (:data:`LAMP_RATIO`), join it
+and the level is solved again: a fit leaves window-bright floaters there that every view
+sees over the window, and a probe beside it sees a fog. The fit redraws only lights a
 view measured (a true HDR view, merged brackets, a darker frame:
 :func:`gaslight_usd.fit.power.light_sighting`): where every photo clipped a window its
 power is the uplift's fill, a lower bound, and drawn flat it lost more of it near by.
 
 ``gaslight2usd bench --suite chain`` measures it at the probes 0.5 m from the windows
-(``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, session 49).
+(``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, sessions 49-50).
 """
 
 from __future__ import annotations
@@ -168,14 +167,12 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     if not lit.any():
         return None
     power = (colours[lit] * scene.opacities[lit, None]).sum(0)
-    chroma = power / max(float(power @ weights), 1e-30)
+    chroma = (measured[1] if measured is not None
+              else power / max(float(power @ weights), 1e-30))
     grid = _grid(panel, CELL_SHARE * median_depth, THIN_SHARE * median_depth)
     keep = np.flatnonzero(~replace)
     head = scene.subset(keep[keep < len(replace) - tail])
     back = scene.subset(keep[keep >= len(replace) - tail])
-
-    if measured is not None:
-        chroma = measured[1]
 
     def with_level(level: float) -> SplatScene:
         return _with_grid(head, *grid, chroma * level, back)
@@ -184,12 +181,11 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     dark = _view_sums(with_level(0.0), views, weights)
     unit = _view_sums(with_level(1.0), views, weights) - dark
     level = float((before - dark).sum() / unit.sum()) if float(unit.sum()) > 0 else np.nan
-    if measured is not None:
-        # the lower of the two: the views' reading times a rectangle the clipped photos
-        # outlined too large (their halo) overshoots, and so do the fit's blobs where
-        # the rectangle is right (module docstring)
-        level = measured[0] if not np.isfinite(level) or level <= 0 else min(level,
-                                                                           measured[0])
+    # the lower of the two: the views' reading over a rectangle the clipped photos
+    # outlined too large (their halo) overshoots, and so do the fit's blobs where the
+    # rectangle is right (module docstring)
+    if measured is not None and not (np.isfinite(level) and 0 < level < measured[0]):
+        level = measured[0]
     if not np.isfinite(level) or level <= 0:
         return None
     return level, with_level, keep, len(grid[0])
