@@ -208,3 +208,20 @@ def test_a_ceiling_panel_is_outlined_where_it_is_though_the_ceiling_plane_is_off
     finally:
         flat_outlines.DEPTH_SWEEP = was
     assert np.linalg.norm(off.centre[[0, 2]] - PANEL_CENTRE[[0, 2]]) > 0.03
+
+
+def test_a_view_that_clipped_nothing_outlines_a_panel_not_the_ceiling_it_lights():
+    """A true HDR view: a panel at 300 in a ceiling lit round it at 20 (both far over 8x
+    the view's median of 1) and a window at 30 with a blurred edge: each region cut at
+    0.35 of its level keeps the panel, and the window without the foot of its edge."""
+    image = np.ones((60, 80, 3), np.float32)
+    image[5:25, 5:35] = 20.0  # the ceiling round the panel
+    image[10:20, 12:28] = 300.0  # the panel
+    ramp = np.linspace(9.0, 30.0, 6, dtype=np.float32)  # the window's blurred edge
+    image[35:55, 40:70] = 30.0
+    image[35:55, 34:40] = ramp[:, None].T[..., None] * np.ones((20, 1, 3), np.float32)
+    (mask,) = lit_masks([image], [None], np.array([0.2126, 0.7152, 0.0722]))
+    rows, cols = np.nonzero(mask[:30])
+    assert (rows.min(), rows.max(), cols.min(), cols.max()) == (10, 19, 12, 27)
+    window_cols = np.nonzero(mask[45])[0]
+    assert window_cols.max() == 69 and window_cols.min() == 35  # its ramp's 9 is out
