@@ -74,6 +74,19 @@ class PinholeCamera:
                            self.fy * cam[:, 1] / z + self.cy], axis=1)
         return uv, z
 
+    def pixels_of(self, points: np.ndarray, shape: tuple[int, ...]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World points (N, 3) -> column and row indices (N,) in an image of ``shape``
+        (H, W, ...) covering this camera's frame at any size, and whether each lies in
+        front of the camera and inside the image (the indices are -1 elsewhere)."""
+        uv, z = self.project(points)
+        h, w = shape[:2]
+        uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
+        x = np.floor(uv[:, 0] * w / self.width).astype(np.int64)
+        y = np.floor(uv[:, 1] * h / self.height).astype(np.int64)
+        inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        return np.where(inside, x, -1), np.where(inside, y, -1), inside
+
     def ray_directions(self) -> np.ndarray:
         """(H, W, 3) unit world directions through every pixel centre."""
         xs = (np.arange(self.width) + 0.5 - self.cx) / self.fx

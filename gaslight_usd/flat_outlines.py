@@ -223,12 +223,7 @@ def _look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
     """Per point (N, 3): whether ``cam`` frames it, and ``mask`` (H, W, at any size)
     there (False where it does not frame it)."""
-    uv, z = cam.project(points)
-    h, w = mask.shape[:2]
-    uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
-    x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
-    y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
-    inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    x, y, inside = cam.pixels_of(points, mask.shape)
     value = np.zeros(len(points), bool)
     value[inside] = mask[y[inside], x[inside]]
     return inside, value

@@ -225,3 +225,13 @@ def test_a_view_that_clipped_nothing_outlines_a_panel_not_the_ceiling_it_lights(
     assert (rows.min(), rows.max(), cols.min(), cols.max()) == (10, 19, 12, 27)
     window_cols = np.nonzero(mask[45])[0]
     assert window_cols.max() == 69 and window_cols.min() == 35  # its ramp's 9 is out
+
+
+def test_a_camera_finds_points_in_an_image_of_any_size():
+    """``PinholeCamera.pixels_of``: the view's frame at half size halves the indices;
+    a point behind the camera or off the frame is in no pixel."""
+    cam = look_at([0.0, 1.5, 0.0], [0.0, 1.5, 2.0])  # 160 x 120, looking along +z
+    points = np.array([[0.0, 1.5, 2.0], [0.0, 1.5, -2.0], [50.0, 1.5, 2.0]])
+    x, y, inside = cam.pixels_of(points, (60, 80, 3))
+    assert inside.tolist() == [True, False, False]
+    assert (x[0], y[0]) == (40, 30) and x[1] == -1 and y[2] == -1

@@ -197,3 +197,11 @@ def test_a_window_a_view_measured_takes_the_level_the_views_read_inside_it():
     _, plain = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
                                   median_depth=2.5, weights=WEIGHTS, tail=tail)
     assert plain.panels[0]["level_from"] == "splats"
+    assert plain.panels[0]["radiance"] > 1.1 * entry["radiance"]
+    # a reading over the sums' level (a rectangle outlined larger than the light) keeps
+    # the sums' level, in the views' colour, and says so
+    _, brighter = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail,
+                                     images=[4.0 * im for im in images], floors=floors)
+    assert brighter.panels[0]["level_from"] == "splats"
+    assert abs(brighter.panels[0]["radiance"] / plain.panels[0]["radiance"] - 1.0) < 0.01

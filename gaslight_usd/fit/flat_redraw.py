@@ -13,7 +13,7 @@ bright ones round its edge, are replaced by a grid of flat, opaque splats on the
 rectangle, one colour, at the level that keeps what the training views draw (their sums
 over the views that frame it, solved in closed form: the grid is opaque, so a view's sum
 is linear in its level), or the level the views that measured it read inside it where
-that is lower, in their colour (:func:`measured_level`). Each overshoots in its way: the
+that is lower, in their colour (:func:`rectangle_reading`). Each overshoots in its way: the
 fit's blobs draw a window 0.1-0.3 stops over what the views read (true HDR views), and
 the views' reading over a rectangle the clipped photos outlined too large (their halo
 round a ceiling panel, +40 % in area) puts too much light in it (``docs/measurements.md``,
@@ -118,8 +118,7 @@ def _view_sums(scene: SplatScene, cameras: Sequence[PinholeCamera], weights: np.
                      for cam in cameras])
 
 
-
-def measured_level(panel: Panel, cameras: Sequence[PinholeCamera],
+def rectangle_reading(panel: Panel, cameras: Sequence[PinholeCamera],
                    images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
                    weights: np.ndarray, white: float) -> tuple[float, np.ndarray] | None:
     """(luminance, chroma (3,)) the views read inside ``panel`` (its middle, :data:`INSET`
@@ -137,11 +136,8 @@ def measured_level(panel: Panel, cameras: Sequence[PinholeCamera],
     for cam, image, floor in zip(cameras, images, floors, strict=True):
         if float((cam.center - panel.centre) @ panel.normal) <= 0:
             continue
-        uv, z = cam.project(points)
-        h, w = image.shape[:2]
-        x = np.floor(uv[:, 0] * w / cam.width).astype(np.int64)
-        y = np.floor(uv[:, 1] * h / cam.height).astype(np.int64)
-        if not bool(np.all((z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h))):
+        x, y, inside = cam.pixels_of(points, image.shape)
+        if not inside.all():
             continue
         if floor is not None and bool((np.asarray(floor)[y, x] > 0).any()):
             continue
@@ -159,10 +155,10 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
            radiance: np.ndarray, white: float, median_depth: float,
            views: Sequence[PinholeCamera], weights: np.ndarray, tail: int,
            measured: tuple[float, np.ndarray] | None = None):
-    """(level, the scene at a level, the kept splats, the grid's size) for ``replace``
-    redrawn as a grid on ``panel`` at the level keeping the ``views``' sums, or the
-    ``measured`` (level, chroma) where that is lower (in its chroma either way); None
-    where nothing bright is replaced or no level fits."""
+    """(level, the scene at a level, the kept splats, the grid's size, which level:
+    "splats" or "views") for ``replace`` redrawn as a grid on ``panel`` at the level
+    keeping the ``views``' sums, or the ``measured`` (level, chroma) where that is lower
+    (in its chroma either way); None where nothing bright is replaced or no level fits."""
     lit = replace & (radiance > white)
     if not lit.any():
         return None
@@ -184,11 +180,13 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     # the lower of the two: the views' reading over a rectangle the clipped photos
     # outlined too large (their halo) overshoots, and so do the fit's blobs where the
     # rectangle is right (module docstring)
+    source = "splats"
     if measured is not None and not (np.isfinite(level) and 0 < level < measured[0]):
-        level = measured[0]
+        level, source = measured[0], "views"
     if not np.isfinite(level) or level <= 0:
         return None
-    return level, with_level, keep, len(grid[0])
+    return level, with_level, keep, len(grid[0]), source
+
 
 def _framing(panel: Panel, cameras: Sequence[PinholeCamera]) -> list[PinholeCamera]:
     """The cameras in front of ``panel`` whose frame holds its centre."""
@@ -215,7 +213,7 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
     (what is over it is bright); ``weights``: luminance weights; ``tail``: the last
     splats (the fit's backdrop) are never replaced and stay last; ``images`` and
     ``floors``: the ``cameras``' HDR views and clip floors, whose reading inside the
-    rectangle sets its level where one measured it (:func:`measured_level`)."""
+    rectangle sets its level where one measured it (:func:`rectangle_reading`)."""
     report = Redrawn()
     weights = np.asarray(weights, np.float64)
     owns = [np.asarray(own, np.int64) for own in light_splats]
@@ -248,7 +246,7 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         if tail:
             replace[len(replace) - tail:] = False
         measured = (None if images is None else
-                    measured_level(panel, cameras, images,
+                    rectangle_reading(panel, cameras, images,
                                    floors if floors is not None else [None] * len(images),
                                    weights, white))
         solved = _solve(scene, panel, replace, colours, radiance, white, median_depth, views,
@@ -271,7 +269,7 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
                            median_depth, views, weights, tail, measured)
             if wider is not None:
                 replace, solved = replace | ahead, wider
-        level, with_level, keep, grid_splats = solved
+        level, with_level, keep, grid_splats, source = solved
         scene = with_level(level)
         done.append(panel.centre)
         remap = np.full(len(replace), -1, np.int64)
@@ -285,5 +283,5 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
                               "replaced_splats": int(replace.sum()),
                               "grid_splats": int(grid_splats),
                               "radiance": round(level, 5), "views": len(views),
-                              "level_from": "views" if measured is not None else "splats"})
+                              "level_from": source})
     return scene, report

@@ -625,10 +625,11 @@ class Trainer:
 
     def _redraw_flat_lights(self, scene: SplatScene, backdrop: int, outlines: list[Outline],
                             weighed: list[LightPower]) -> tuple[SplatScene, Redrawn]:
-        """Each light the views outlined on a wall or ceiling redrawn there as a flat,
-        even emitter at the power the training views drew (:mod:`gaslight_usd.fit.flat_redraw`);
-        the lights as the export's lights finder will see them (the views' white, the
-        fit's backdrop, the lights it ``weighed``)."""
+        """Each light the views outlined on a wall or ceiling and one view measured,
+        redrawn there as a flat, even emitter (:mod:`gaslight_usd.fit.flat_redraw`: at
+        the level the measuring views read, or the power the training views drew where
+        lower); the lights as the export's lights finder will see them (the views'
+        white, the fit's backdrop, the lights it ``weighed``)."""
         if not self.room_planes or not outlines:
             return scene, Redrawn()
         from ..lights import outlined_lights, search_lights
