@@ -19,6 +19,14 @@ view's outline then lands elsewhere on the plane. So a region the views see obli
 looked up again at depths around the plane (:data:`DEPTH_SWEEP`), and kept where the
 centres of the views' outlines of it coincide (:func:`_agreeing_offset`).
 
+A light only one view frames (a ceiling panel the other photos look past) has no second
+view to vote with: where that view saw it whole (framed round it, not cut by its frame)
+and the other views judge none of it, its lit cells on the plane are outlined all the
+same, smoothed of the ragged edge one view's coarse pixels leave, and marked
+``single_view``: one view puts a lamp hanging in front of a wall on the wall just as
+well, so such an outline holds only a light the fit drew on the plane
+(:func:`gaslight_usd.light_shapes.panel_of`), and only inside the room's other planes.
+
 The fit stores them in the splats' metadata (``flat_outlines``); the rig's panels take a
 light's rectangle from the outline that holds it (:func:`gaslight_usd.light_shapes.panel_of`).
 Measured by ``gaslight2usd bench --suite chain`` (``rect_iou_<light>``,
@@ -80,6 +88,11 @@ FACE_ON_COS = 0.8
 over this): there the outlines hardly slide with the plane's depth, and their spread says
 nothing of it (windows seen across a room, |cos| 0.97-0.99, were moved up to 12 cm off
 their walls)."""
+SINGLE_VIEW_MARGIN = 2
+"""A region only one view frames, lit there, is outlined too (a ceiling panel the other
+photos pass by: ``panels:7``'s second panel, which one of its photos frames), where the
+cells this many round it are framed as well (its edge is the light's, not the frame's)
+and none of them is lit in a view that frames two-view cells beside it."""
 SQUARE_COS = 0.2
 """Another plane whose normal is within this |cos| of square to this one sets the sides."""
 
@@ -99,6 +112,9 @@ class Outline:
     fill: float = 1.0
     """The share of the rectangle's cells that are lit: a window's or panel's clipped
     region fills its rectangle; specks and lit walls merged into one region do not."""
+    single_view: bool = False
+    """Only one view frames the region (:data:`SINGLE_VIEW_MARGIN`): it lies on the plane
+    only if the light the fit drew there does, which one view cannot show."""
 
     @property
     def clean(self) -> bool:
@@ -118,7 +134,8 @@ class Outline:
                 "u": [round(float(x), 5) for x in self.u],
                 "v": [round(float(x), 5) for x in self.v],
                 "half_size": [round(float(x), 5) for x in self.half_size],
-                "cells": int(self.cells), "fill": round(float(self.fill), 4)}
+                "cells": int(self.cells), "fill": round(float(self.fill), 4),
+                "single_view": bool(self.single_view)}
 
     @classmethod
     def from_dict(cls, entry: Mapping[str, Any]) -> Outline | None:
@@ -129,11 +146,12 @@ class Outline:
             half = np.asarray(entry["half_size"], np.float64).reshape(2)
             cells = int(entry.get("cells", 0))
             fill = float(entry.get("fill", 1.0))
+            single = bool(entry.get("single_view", False))
         except (KeyError, TypeError, ValueError):
             return None
         if not all(np.all(np.isfinite(x)) for x in (*vecs, half)) or half.min() <= 0:
             return None
-        return cls(*vecs, half_size=half, cells=cells, fill=fill)
+        return cls(*vecs, half_size=half, cells=cells, fill=fill, single_view=single)
 
 
 def outlines_from_metadata(metadata: Mapping[str, Any]) -> list[Outline]:
@@ -188,7 +206,17 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         nu, nv = (np.ceil((hi - lo) / cell)).astype(int)
         gu = lo[0] + (np.arange(nu) + 0.5) * cell
         gv = lo[1] + (np.arange(nv) + 0.5) * cell
-        good = _votes(offset, normal, u, v, gu, gv, cameras, lit, front)
+        framed, seen, which = _counts(offset, normal, u, v, gu, gv, cameras, lit, front)
+        good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
+        for region in _single_view_regions(framed, seen, which, good):
+            outline = _outline_of(region, gu, gv, cell, offset, normal, u, v)
+            # one view's light seen past a wall or the ceiling, put on this plane's
+            # stretch beyond them, is none of this room's
+            if outline is not None and all(
+                    float(m @ outline.centre) - d > 0
+                    for j, (m, d) in enumerate(planes) if j != k):
+                outline.single_view = True
+                out.append(outline)
         labels, count = ndimage.label(good, structure=np.ones((3, 3)))
         if not count:
             continue
@@ -229,22 +257,62 @@ def _look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
     return inside, value
 
 
+def _counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
+            gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
+            front: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per cell of the plane (``normal``, ``offset``), ``(len(gu), len(gv))`` each: how
+    many views frame it, how many saw light there, and the last view that framed it."""
+    uu, vv = np.meshgrid(gu, gv, indexing="ij")
+    points = offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
+    framed = np.zeros(len(points), np.int32)
+    seen = np.zeros(len(points), np.int32)
+    which = np.full(len(points), -1, np.int32)
+    for k, (cam, mask, ahead) in enumerate(zip(cameras, lit, front, strict=True)):
+        if ahead and mask is not None:
+            inside, value = _look_up(cam, mask, points)
+            framed += inside
+            seen += value
+            which[inside] = k
+    shape = (len(gu), len(gv))
+    return framed.reshape(shape), seen.reshape(shape), which.reshape(shape)
+
+
 def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
            gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
            front: np.ndarray) -> np.ndarray:
     """(len(gu), len(gv)) cells of the plane (``normal``, ``offset``) lit in the views
     (:data:`MIN_VIEWS`, :data:`LIT_SHARE`)."""
-    uu, vv = np.meshgrid(gu, gv, indexing="ij")
-    points = offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
-    framed = np.zeros(len(points), np.int32)
-    seen = np.zeros(len(points), np.int32)
-    for cam, mask, ahead in zip(cameras, lit, front, strict=True):
-        if ahead and mask is not None:
-            inside, value = _look_up(cam, mask, points)
-            framed += inside
-            seen += value
-    good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
-    return good.reshape(len(gu), len(gv))
+    framed, seen, _ = _counts(offset, normal, u, v, gu, gv, cameras, lit, front)
+    return (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
+
+
+def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray,
+                         good: np.ndarray) -> list[np.ndarray]:
+    """Masks of the lit regions most of which one view alone frames (module docstring,
+    :data:`SINGLE_VIEW_MARGIN`): the cells lit in some view that frames them, joined,
+    where the cells only one view frames are all that view's and outnumber those two
+    views judged lit (fewer than :data:`MIN_CELLS`: no outline of their own), and every
+    cell round the region is framed and dark (the region is the light, whole)."""
+    alone = (framed == 1) & (seen == 1)
+    labels, count = ndimage.label((seen > 0) & (alone | (framed > 1)),
+                                  structure=np.ones((3, 3)))
+    ring = np.ones((2 * SINGLE_VIEW_MARGIN + 1,) * 2, bool)
+    out = []
+    for lab in range(1, count + 1):
+        region = labels == lab
+        mine = region & alone
+        if mine.sum() < MIN_CELLS or good[region].sum() >= min(MIN_CELLS, mine.sum()) \
+                or len(np.unique(which[mine])) != 1:
+            continue
+        around = ndimage.binary_dilation(region, ring) & ~region
+        if (framed[around] == 0).any() or (seen[around] > 0).any():
+            continue  # cut by the frame, or part of more light
+        # one view's pixels, coarser than the cells, leave its edge ragged a cell deep
+        # where views' votes smooth it: smoothed so, its rectangle is the light's
+        smooth = ndimage.binary_opening(ndimage.binary_closing(region, np.ones((3, 3))),
+                                        np.ones((3, 3)))
+        out.append(smooth if smooth.sum() >= MIN_CELLS else region)
+    return out
 
 
 def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray,

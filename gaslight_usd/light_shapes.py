@@ -69,6 +69,8 @@ class Panel:
     outlined: bool = False
     """The rectangle is one the views outlined (:mod:`gaslight_usd.flat_outlines`), not
     the splats' spread."""
+    single_view: bool = False
+    """...by one view alone (:attr:`gaslight_usd.flat_outlines.Outline.single_view`)."""
 
     @property
     def area(self) -> float:
@@ -133,7 +135,7 @@ def panel_of(position: np.ndarray, extent: np.ndarray, axes: np.ndarray,
     if on_plane or (abs(offsets[k]) <= OUTLINED_OFF_SHARE * median_depth
                     and not _near_compact(position, compact, ON_PLANE_SHARE * median_depth)):
         outline = _holding_outline(position, normal, planes[k][1], outlines,
-                                   ON_PLANE_SHARE * median_depth)
+                                   ON_PLANE_SHARE * median_depth, on_plane)
         if outline is not None:
             return outlined_panel(outline, median_depth, float(offsets[k]))
     if not on_plane:
@@ -157,7 +159,29 @@ def outlined_panel(outline: Outline, median_depth: float, plane_offset: float = 
     normal = np.asarray(outline.normal, np.float64)
     return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
                  normal=normal.copy(), u=outline.u.copy(), v=np.cross(outline.u, normal),
-                 half_size=outline.half_size.copy(), plane_offset=plane_offset, outlined=True)
+                 half_size=outline.half_size.copy(), plane_offset=plane_offset, outlined=True,
+                 single_view=outline.single_view)
+
+
+def drawn_on_outline(positions: np.ndarray, power: np.ndarray, outline: Outline,
+                     median_depth: float) -> bool:
+    """Whether the splats at ``positions`` (N, 3) that carry ``power`` (N,; 0 for those
+    that are no light's) over ``outline``'s rectangle, up to :data:`OUTLINED_OFF_SHARE`
+    in front of its plane, lie on the plane: their power-weighted median distance to it
+    within :data:`ON_PLANE_SHARE` (shares of ``median_depth``). What one view outlined
+    is a light on the plane only where the fit drew one there (:class:`Outline`)."""
+    rel = np.asarray(positions, np.float64) - outline.centre
+    off = rel @ outline.normal
+    over = ((np.abs(rel @ outline.u) <= outline.half_size[0])
+            & (np.abs(rel @ outline.v) <= outline.half_size[1])
+            & (off >= -ON_PLANE_SHARE * median_depth)
+            & (off <= OUTLINED_OFF_SHARE * median_depth) & (np.asarray(power) > 0))
+    if not over.any():
+        return False
+    order = np.argsort(np.abs(off[over]))
+    weights = np.cumsum(np.asarray(power, np.float64)[over][order])
+    median = float(np.abs(off[over])[order][np.searchsorted(weights, weights[-1] / 2.0)])
+    return median <= ON_PLANE_SHARE * median_depth
 
 
 def _near_compact(position: np.ndarray, compact: np.ndarray | None, reach: float) -> bool:
@@ -171,12 +195,15 @@ def _near_compact(position: np.ndarray, compact: np.ndarray | None, reach: float
 
 
 def _holding_outline(position: np.ndarray, normal: np.ndarray, offset: float,
-                     outlines: Sequence[Outline], tolerance: float) -> Outline | None:
+                     outlines: Sequence[Outline], tolerance: float, on_plane: bool = True
+                     ) -> Outline | None:
     """The clean outline (one that fills its rectangle) with the most lit cells on the
     plane (``normal``, ``offset``) that holds ``position`` within ``tolerance``; None when
-    none does."""
+    none does. One that one view alone outlined holds only a light ``on_plane``: one view
+    outlines a lamp in front of a wall on the wall all the same."""
     held = [o for o in outlines
-            if o.clean and float(o.normal @ normal) > 1.0 - SQUARE_COS ** 2 / 2
+            if o.clean and (on_plane or not o.single_view)
+            and float(o.normal @ normal) > 1.0 - SQUARE_COS ** 2 / 2
             and abs(float(o.normal @ o.centre) - offset) <= tolerance
             and o.holds(position, tolerance)]
     return max(held, key=lambda o: o.cells) if held else None

@@ -227,6 +227,83 @@ def test_a_view_that_clipped_nothing_outlines_a_panel_not_the_ceiling_it_lights(
     assert window_cols.max() == 69 and window_cols.min() == 35  # its ramp's 9 is out
 
 
+def test_a_panel_one_view_frames_is_outlined_from_it_and_held_only_on_its_plane():
+    """A ceiling panel only one photo frames (the others look past it): that view's lit
+    region on the ceiling is the panel's rectangle, marked as one view's; it holds a
+    light the fit drew on the ceiling, not one hanging half a metre under it, where one
+    view would have outlined a lamp's shadow on the ceiling all the same."""
+    cam = look_at([0.3, 1.5, 0.4], PANEL_CENTRE)
+    others = [look_at(c, [2.5, 1.2, 0.5]) for c in ([-1.0, 1.4, 1.0], [0.0, 1.6, -1.5])]
+    cams = [cam, *others]
+    masks = [panel_mask(c) for c in cams]
+    assert masks[0].any() and not masks[1].any() and not masks[2].any()
+    planes = [(np.array([0.0, -1.0, 0.0]), -3.0)] + PLANES[2:]
+    (found,) = [o for o in plane_outlines(planes, cams, masks) if o.normal[1] < -0.9]
+    assert found.single_view and found.clean
+    np.testing.assert_allclose(found.centre, PANEL_CENTRE, atol=0.03)
+    np.testing.assert_allclose(found.half_size, PANEL_HALF, atol=0.03)
+    back = outlines_from_metadata({"flat_outlines": [found.as_dict()]})
+    assert back[0].single_view
+    extent, axes = np.full(3, 0.1), np.eye(3)
+    panel = panel_of(PANEL_CENTRE + [0.03, -0.03, 0.0], extent, axes, planes, 2.5, [found])
+    assert panel is not None and panel.single_view and panel.outlined
+    np.testing.assert_allclose(panel.half_size, PANEL_HALF, atol=0.03)
+    hanging = PANEL_CENTRE + [0.0, -0.5, 0.0]
+    assert panel_of(hanging, extent, axes, planes, 2.5, [found]) is None
+    # two views framing it make the usual outline, not one view's
+    both = [cam, look_at([-0.2, 1.3, 1.0], PANEL_CENTRE)]
+    (two,) = [o for o in plane_outlines(planes, both, [panel_mask(c) for c in both])
+              if o.normal[1] < -0.9]
+    assert not two.single_view
+
+
+def test_one_views_outline_is_a_light_where_the_fit_drew_its_light_on_the_plane():
+    """The fit's light over a one-view outline, on the ceiling (a few centimetres under
+    it, as fits leave it), is the outline's; a lamp hanging half a metre under it, or
+    nothing bright there at all, is not."""
+    from gaslight_usd.light_shapes import drawn_on_outline
+
+    cam = look_at([0.3, 1.5, 0.4], PANEL_CENTRE)
+    others = [look_at(c, [2.5, 1.2, 0.5]) for c in ([-1.0, 1.4, 1.0], [0.0, 1.6, -1.5])]
+    cams = [cam, *others]
+    planes = [(np.array([0.0, -1.0, 0.0]), -3.0)] + PLANES[2:]
+    (found,) = [o for o in plane_outlines(planes, cams, [panel_mask(c) for c in cams])
+                if o.normal[1] < -0.9]
+    rng = np.random.default_rng(0)
+    spot = PANEL_CENTRE + rng.uniform(-0.15, 0.15, (40, 3)) * [1.0, 0.1, 1.0]
+    wall = np.column_stack([rng.uniform(-2, 2, 60), rng.uniform(0, 3, 60), np.full(60, -2.0)])
+    power = np.concatenate([np.full(40, 300.0), np.zeros(60)])
+    on = np.concatenate([spot - [0.0, 0.04, 0.0], wall])
+    hanging = np.concatenate([spot - [0.0, 0.5, 0.0], wall])
+    assert drawn_on_outline(on, power, found, 2.5)
+    assert not drawn_on_outline(hanging, power, found, 2.5)
+    assert not drawn_on_outline(on, np.zeros(100), found, 2.5)
+
+
+def test_one_views_light_cut_by_its_frame_or_past_a_wall_is_not_outlined():
+    """Half the panel in the only view that frames it: its edge there is the frame's,
+    not the light's. A light past the side wall, put on the ceiling's stretch beyond
+    the wall, is none of the room's. (Two more views look elsewhere.)"""
+    others = [look_at(c, [2.5, 1.2, 0.5]) for c in ([-1.0, 1.4, 1.0], [0.0, 1.6, -1.5])]
+    cam = look_at([0.3, 1.5, 0.4], PANEL_CENTRE)
+    cols = np.nonzero(panel_mask(cam).any(axis=0))[0]
+    cut = look_at([0.3, 1.5, 0.4], PANEL_CENTRE)
+    cut.cx -= (cols.min() + cols.max()) / 2  # the panel's middle on the frame's left edge
+    assert panel_mask(cut)[:, 0].any()
+    planes = [(np.array([0.0, -1.0, 0.0]), -3.0)] + PLANES[2:]
+
+    def on_ceiling(first, walls=planes):
+        cams = [first, *others]
+        return [o for o in plane_outlines(walls, cams, [panel_mask(c) for c in cams])
+                if o.normal[1] < -0.9]
+
+    assert len(on_ceiling(cam)) == 1
+    assert not on_ceiling(cut)
+    # a side wall at z = -0.4 (its normal towards the cameras): the panel lies past it
+    walled = [planes[0], (np.array([0.0, 0.0, 1.0]), -0.4)]
+    assert not on_ceiling(cam, walled)
+
+
 def test_a_camera_finds_points_in_an_image_of_any_size():
     """``PinholeCamera.pixels_of``: the view's frame at half size halves the indices;
     a point behind the camera or off the frame is in no pixel."""

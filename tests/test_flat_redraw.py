@@ -205,3 +205,26 @@ def test_a_window_a_view_measured_takes_the_level_the_views_read_inside_it():
                                      images=[4.0 * im for im in images], floors=floors)
     assert brighter.panels[0]["level_from"] == "splats"
     assert abs(brighter.panels[0]["radiance"] / plain.panels[0]["radiance"] - 1.0) < 0.01
+
+
+def test_a_light_one_view_outlined_takes_its_reading_though_the_sums_say_less():
+    """One view frames the light: the fit's splats of it spread along that view's rays,
+    and what of them falls in the rectangle sums to less than the light; its reading
+    inside the rectangle is the light's level, above or below the sums'."""
+    from dataclasses import replace
+
+    scene, window, tail = scene_with_window()
+    cams = [look_at([-1.0, 1.5, 0.0], CENTRE)]
+    true_rgb = np.array([9.0, 10.0, 11.0])
+    lit = window_mask(cams[0])
+    bright = [4.0 * np.where(lit[..., None], true_rgb, 0.3).astype(np.float32)]
+    one = replace(panel(), single_view=True)
+    _, plain = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
+                                  median_depth=2.5, weights=WEIGHTS, tail=tail,
+                                  images=bright, floors=[None])
+    _, single = redraw_flat_lights(scene, [one], [window], cams, white=1.0,
+                                   median_depth=2.5, weights=WEIGHTS, tail=tail,
+                                   images=bright, floors=[None])
+    assert plain.panels[0]["level_from"] == "splats"
+    assert single.panels[0]["level_from"] == "views"
+    assert abs(single.panels[0]["radiance"] / float(4.0 * true_rgb @ WEIGHTS) - 1.0) < 0.01

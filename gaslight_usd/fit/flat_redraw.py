@@ -17,13 +17,17 @@ that is lower, in their colour (:func:`rectangle_reading`). Each overshoots in i
 fit's blobs draw a window 0.1-0.3 stops over what the views read (true HDR views), and
 the views' reading over a rectangle the clipped photos outlined too large (their halo
 round a ceiling panel, +40 % in area) puts too much light in it (``docs/measurements.md``,
-session 50). Then the splats over the white floating in front of the rectangle, within
-its prism, that are not another light many times brighter (:data:`LAMP_RATIO`), join it
-and the level is solved again: a fit leaves window-bright floaters there that every view
-sees over the window, and a probe beside it sees a fog. The fit redraws only lights a
-view measured (a true HDR view, merged brackets, a darker frame:
-:func:`gaslight_usd.fit.power.light_sighting`): where every photo clipped a window its
-power is the uplift's fill, a lower bound, and drawn flat it lost more of it near by.
+session 50). A rectangle one view alone outlined takes that view's reading, above the
+sums or below: one view cannot place the fit's splats of the light (they spread along its
+rays, and of ``panels:7``'s second panel half fell outside its rectangle: its sums said
+half its level; ``docs/measurements.md``, session 51). Then the splats over the white
+floating in front of the rectangle, within its prism, that are not another light many
+times brighter (:data:`LAMP_RATIO`), join it and the level is solved again: a fit leaves
+window-bright floaters there that every view sees over the window, and a probe beside it
+sees a fog. The fit redraws only lights a view measured (a true HDR view, merged
+brackets, a darker frame: :func:`gaslight_usd.fit.power.light_sighting`): where every
+photo clipped a window its power is the uplift's fill, a lower bound, and drawn flat it
+lost more of it near by.
 
 ``gaslight2usd bench --suite chain`` measures it at the probes 0.5 m from the windows
 (``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, sessions 49-50).
@@ -158,7 +162,8 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     """(level, the scene at a level, the kept splats, the grid's size, which level:
     "splats" or "views") for ``replace`` redrawn as a grid on ``panel`` at the level
     keeping the ``views``' sums, or the ``measured`` (level, chroma) where that is lower
-    (in its chroma either way); None where nothing bright is replaced or no level fits."""
+    or one view alone outlined the panel (in its chroma either way); None where nothing
+    bright is replaced or no level fits."""
     lit = replace & (radiance > white)
     if not lit.any():
         return None
@@ -181,7 +186,8 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     # outlined too large (their halo) overshoots, and so do the fit's blobs where the
     # rectangle is right (module docstring)
     source = "splats"
-    if measured is not None and not (np.isfinite(level) and 0 < level < measured[0]):
+    if measured is not None and (panel.single_view or not (np.isfinite(level)
+                                                           and 0 < level < measured[0])):
         level, source = measured[0], "views"
     if not np.isfinite(level) or level <= 0:
         return None

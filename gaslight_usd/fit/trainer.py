@@ -40,7 +40,7 @@ from ..colour import luminance_weights
 from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..flat_outlines import Outline, lit_masks, plane_outlines
-from ..light_shapes import outlined_panel, panel_of
+from ..light_shapes import drawn_on_outline, outlined_panel, panel_of
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
@@ -666,10 +666,16 @@ class Trainer:
                 others.append(light.splats)
         # a window the views outlined and one measured, that no light of the finder's
         # holds (its splats smeared off into the room, or taken for the light it throws):
-        # the rectangle is its light all the same
+        # the rectangle is its light all the same; one view's outline only where the fit
+        # drew its light on the plane (the finder may have grouped it with another light)
+        power = np.where(probe.base_colours.max(axis=1) > search.white,
+                         probe.base_colours @ weights, 0.0)
+        power[~search.emitters] = 0.0
         for outline in outlines:
             panel = outlined_panel(outline, depth)
-            if outline.clean and not any(np.allclose(panel.centre, p.centre) for p, _ in pairs) \
+            if outline.clean and (not outline.single_view or drawn_on_outline(
+                    probe.positions, power, outline, depth)) \
+                    and not any(np.allclose(panel.centre, p.centre) for p, _ in pairs) \
                     and light_sighting(outline.centre, views, images, floors, weights,
                                        search.white) == "measured":
                 pairs.append((panel, np.zeros(0, np.int64)))
