@@ -206,23 +206,12 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         nu, nv = (np.ceil((hi - lo) / cell)).astype(int)
         gu = lo[0] + (np.arange(nu) + 0.5) * cell
         gv = lo[1] + (np.arange(nv) + 0.5) * cell
-        framed, seen, which = _counts(offset, normal, u, v, gu, gv, cameras, lit, front)
-        good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
-        for region in _single_view_regions(framed, seen, which, good):
-            outline = _outline_of(region, gu, gv, cell, offset, normal, u, v)
-            # one view's light seen past a wall or the ceiling, put on this plane's
-            # stretch beyond them, is none of this room's
-            if outline is not None and all(
-                    float(m @ outline.centre) - d > 0
-                    for j, (m, d) in enumerate(planes) if j != k):
-                outline.single_view = True
-                out.append(outline)
+        good = _votes(offset, normal, u, v, gu, gv, cameras, lit, front)
         labels, count = ndimage.label(good, structure=np.ones((3, 3)))
-        if not count:
-            continue
         sizes = np.bincount(labels.ravel(), minlength=count + 1)
         boxes = ndimage.find_objects(labels)
         largest = [lab for lab in np.argsort(-sizes[1:]) + 1 if sizes[lab] >= MIN_CELLS]
+        swept = []  # the depths the views agreed on where they moved a region's plane
         for lab in largest[:MAX_OUTLINES]:
             su, sv = boxes[lab - 1]
             # the plane's depth there, as the views agree on it (module docstring)
@@ -234,6 +223,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             if depth == offset:
                 region = labels[bu, bv] == lab
             else:
+                swept.append(depth)
                 moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front)
                 near, n_near = ndimage.label(moved, structure=np.ones((3, 3)))
                 if not n_near:
@@ -243,6 +233,20 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
                 region = near == int(np.argmax(counts))
             outline = _outline_of(region, gu[bu], gv[bv], cell, depth, normal, u, v)
             if outline is not None:
+                out.append(outline)
+        # one view cannot sweep the plane: where two views moved it under their lights,
+        # the plane (a flat ceiling) is there under one view's light too
+        at = float(np.median(swept)) if swept else offset
+        framed, seen, which = _counts(at, normal, u, v, gu, gv, cameras, lit, front)
+        good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
+        for region in _single_view_regions(framed, seen, which, good):
+            outline = _outline_of(region, gu, gv, cell, at, normal, u, v)
+            # one view's light seen past a wall or the ceiling, put on this plane's
+            # stretch beyond them, is none of this room's
+            if outline is not None and all(
+                    float(m @ outline.centre) - d > 0
+                    for j, (m, d) in enumerate(planes) if j != k):
+                outline.single_view = True
                 out.append(outline)
     return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
 

@@ -257,6 +257,35 @@ def test_a_panel_one_view_frames_is_outlined_from_it_and_held_only_on_its_plane(
     assert not two.single_view
 
 
+def test_one_views_panel_lies_at_the_depth_two_views_agreed_on_for_the_ceiling():
+    """The room box's ceiling 5 cm under the panels: five views sweep it up to the panel
+    they share; a second panel one view frames, seen from the side, is outlined at that
+    depth too, where it is, not slid along that view's rays."""
+    second = np.array([1.6, 3.0, 1.6])
+
+    def second_mask(cam: PinholeCamera) -> np.ndarray:
+        dirs = cam.ray_directions()
+        t = (3.0 - cam.center[1]) / np.where(dirs[..., 1] > 1e-6, dirs[..., 1], np.nan)
+        hit = cam.center + dirs * t[..., None]
+        with np.errstate(invalid="ignore"):
+            return ((np.abs(hit[..., 0] - second[0]) <= PANEL_HALF)
+                    & (np.abs(hit[..., 2] - second[2]) <= PANEL_HALF))
+
+    shared = [look_at(c, PANEL_CENTRE) for c in
+              ([0.5, 1.4, 0.5], [1.0, 1.5, -1.0], [0.2, 1.3, -2.0], [1.5, 1.6, 0.0],
+               [0.8, 1.2, -0.2])]
+    alone = look_at([0.2, 1.4, 0.2], second)
+    cams = [*shared, alone]
+    assert not any(second_mask(c).any() for c in shared)
+    masks = [panel_mask(c) | second_mask(c) for c in cams]
+    planes = [(np.array([0.0, -1.0, 0.0]), -2.95)] + PLANES[2:]
+    found = [o for o in plane_outlines(planes, cams, masks)
+             if o.normal[1] < -0.9 and o.single_view]
+    assert len(found) == 1
+    np.testing.assert_allclose(found[0].centre, second, atol=0.02)
+    np.testing.assert_allclose(found[0].half_size, PANEL_HALF, atol=0.03)
+
+
 def test_one_views_outline_is_a_light_where_the_fit_drew_its_light_on_the_plane():
     """The fit's light over a one-view outline, on the ceiling (a few centimetres under
     it, as fits leave it), is the outline's; a lamp hanging half a metre under it, or
