@@ -92,7 +92,7 @@ SINGLE_VIEW_MARGIN = 2
 """A region only one view frames, lit there, is outlined too (a ceiling panel the other
 photos pass by: ``panels:7``'s second panel, which one of its photos frames), where the
 cells this many round it are framed as well (its edge is the light's, not the frame's)
-and none of them is lit in a view that frames two-view cells beside it."""
+and dark in every view that frames them (the region is the whole light)."""
 SQUARE_COS = 0.2
 """Another plane whose normal is within this |cos| of square to this one sets the sides."""
 
@@ -292,11 +292,11 @@ def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: 
 
 def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray,
                          good: np.ndarray) -> list[np.ndarray]:
-    """Masks of the lit regions most of which one view alone frames (module docstring,
+    """Masks of the lit regions one view alone frames (module docstring,
     :data:`SINGLE_VIEW_MARGIN`): the cells lit in some view that frames them, joined,
-    where the cells only one view frames are all that view's and outnumber those two
-    views judged lit (fewer than :data:`MIN_CELLS`: no outline of their own), and every
-    cell round the region is framed and dark (the region is the light, whole)."""
+    where the cells only one view frames (at least :data:`MIN_CELLS`) are all that view's,
+    those two views judged lit are too few for an outline of their own, and every cell
+    round the region is framed and dark (the region is the whole light)."""
     alone = (framed == 1) & (seen == 1)
     labels, count = ndimage.label((seen > 0) & (alone | (framed > 1)),
                                   structure=np.ones((3, 3)))
@@ -305,7 +305,7 @@ def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray
     for lab in range(1, count + 1):
         region = labels == lab
         mine = region & alone
-        if mine.sum() < MIN_CELLS or good[region].sum() >= min(MIN_CELLS, mine.sum()) \
+        if mine.sum() < MIN_CELLS or good[region].sum() >= MIN_CELLS \
                 or len(np.unique(which[mine])) != 1:
             continue
         around = ndimage.binary_dilation(region, ring) & ~region

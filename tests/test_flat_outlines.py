@@ -170,14 +170,14 @@ PANEL_CENTRE = np.array([-1.2, 3.0, -0.6])
 PANEL_HALF = 0.2
 
 
-def panel_mask(cam: PinholeCamera) -> np.ndarray:
+def panel_mask(cam: PinholeCamera, centre: np.ndarray = PANEL_CENTRE) -> np.ndarray:
     """Where ``cam``'s pixel rays meet a 0.4 m ceiling panel at y = 3."""
     dirs = cam.ray_directions()
     t = (3.0 - cam.center[1]) / np.where(dirs[..., 1] > 1e-6, dirs[..., 1], np.nan)
     hit = cam.center + dirs * t[..., None]
     with np.errstate(invalid="ignore"):
-        return ((np.abs(hit[..., 0] - PANEL_CENTRE[0]) <= PANEL_HALF)
-                & (np.abs(hit[..., 2] - PANEL_CENTRE[2]) <= PANEL_HALF))
+        return ((np.abs(hit[..., 0] - centre[0]) <= PANEL_HALF)
+                & (np.abs(hit[..., 2] - centre[2]) <= PANEL_HALF))
 
 
 def test_a_ceiling_panel_is_outlined_where_it_is_though_the_ceiling_plane_is_off():
@@ -262,22 +262,13 @@ def test_one_views_panel_lies_at_the_depth_two_views_agreed_on_for_the_ceiling()
     they share; a second panel one view frames, seen from the side, is outlined at that
     depth too, where it is, not slid along that view's rays."""
     second = np.array([1.6, 3.0, 1.6])
-
-    def second_mask(cam: PinholeCamera) -> np.ndarray:
-        dirs = cam.ray_directions()
-        t = (3.0 - cam.center[1]) / np.where(dirs[..., 1] > 1e-6, dirs[..., 1], np.nan)
-        hit = cam.center + dirs * t[..., None]
-        with np.errstate(invalid="ignore"):
-            return ((np.abs(hit[..., 0] - second[0]) <= PANEL_HALF)
-                    & (np.abs(hit[..., 2] - second[2]) <= PANEL_HALF))
-
     shared = [look_at(c, PANEL_CENTRE) for c in
               ([0.5, 1.4, 0.5], [1.0, 1.5, -1.0], [0.2, 1.3, -2.0], [1.5, 1.6, 0.0],
                [0.8, 1.2, -0.2])]
     alone = look_at([0.2, 1.4, 0.2], second)
     cams = [*shared, alone]
-    assert not any(second_mask(c).any() for c in shared)
-    masks = [panel_mask(c) | second_mask(c) for c in cams]
+    assert not any(panel_mask(c, second).any() for c in shared)
+    masks = [panel_mask(c) | panel_mask(c, second) for c in cams]
     planes = [(np.array([0.0, -1.0, 0.0]), -2.95)] + PLANES[2:]
     found = [o for o in plane_outlines(planes, cams, masks)
              if o.normal[1] < -0.9 and o.single_view]
