@@ -93,12 +93,6 @@ SINGLE_VIEW_MARGIN = 2
 photos pass by: ``panels:7``'s second panel, which one of its photos frames), where the
 cells this many round it are framed as well (its edge is the light's, not the frame's)
 and dark in every view that frames them (the region is the whole light)."""
-CO_LOCATED_SHARE = 0.01
-"""Views whose centres lie within this share of the cameras' median distance to a plane
-are one viewpoint (a darker frame shot where a photo was: no parallax between them). A
-viewpoint frames a cell where one of its views does, and saw light there where all of
-its views that frame it did (the darker frame's measured light inside the photo's
-clipped halo)."""
 SQUARE_COS = 0.2
 """Another plane whose normal is within this |cos| of square to this one sets the sides."""
 
@@ -212,8 +206,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         nu, nv = (np.ceil((hi - lo) / cell)).astype(int)
         gu = lo[0] + (np.arange(nu) + 0.5) * cell
         gv = lo[1] + (np.arange(nv) + 0.5) * cell
-        views = _viewpoints(cameras, float(np.median(dist[front])))
-        good = _votes(offset, normal, u, v, gu, gv, cameras, lit, front, views)
+        good = _votes(offset, normal, u, v, gu, gv, cameras, lit, front)
         labels, count = ndimage.label(good, structure=np.ones((3, 3)))
         sizes = np.bincount(labels.ravel(), minlength=count + 1)
         boxes = ndimage.find_objects(labels)
@@ -226,13 +219,12 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             bu = slice(max(0, su.start - margin), min(nu, su.stop + margin))
             bv = slice(max(0, sv.start - margin), min(nv, sv.stop + margin))
             depth = _agreeing_offset(offset, normal, u, v, gu[bu], gv[bv], cameras, lit,
-                                     front, float(np.median(dist[front])), views)
+                                     front, float(np.median(dist[front])))
             if depth == offset:
                 region = labels[bu, bv] == lab
             else:
                 swept.append(depth)
-                moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front,
-                               views)
+                moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front)
                 near, n_near = ndimage.label(moved, structure=np.ones((3, 3)))
                 if not n_near:
                     continue
@@ -245,7 +237,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         # one view cannot sweep the plane: where two views moved it under their lights,
         # the plane (a flat ceiling) is there under one view's light too
         at = float(np.median(swept)) if swept else offset
-        framed, seen, which = _counts(at, normal, u, v, gu, gv, cameras, lit, front, views)
+        framed, seen, which = _counts(at, normal, u, v, gu, gv, cameras, lit, front)
         good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
         for region in _single_view_regions(framed, seen, which, good):
             outline = _outline_of(region, gu, gv, cell, at, normal, u, v)
@@ -271,49 +263,31 @@ def _look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
 
 def _counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
             gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
-            front: np.ndarray, viewpoints: np.ndarray | None = None
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            front: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per cell of the plane (``normal``, ``offset``), ``(len(gu), len(gv))`` each: how
-    many viewpoints (``viewpoints``: one id per camera, :func:`_viewpoints`; default each
-    camera its own) frame it, how many saw light there (:data:`CO_LOCATED_SHARE`), and
-    the last viewpoint that framed it."""
+    many views frame it, how many saw light there, and the last view that framed it."""
     uu, vv = np.meshgrid(gu, gv, indexing="ij")
     points = offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
-    ids = np.arange(len(cameras)) if viewpoints is None else np.asarray(viewpoints)
-    framed_by: dict[int, np.ndarray] = {}
-    lit_by: dict[int, np.ndarray] = {}
-    for k, (cam, mask, ahead) in enumerate(zip(cameras, lit, front, strict=True)):
-        if ahead and mask is not None:
-            inside, value = _look_up(cam, mask, points)
-            g = int(ids[k])
-            framed_by[g] = framed_by.get(g, np.zeros(len(points), bool)) | inside
-            lit_by[g] = lit_by.get(g, np.ones(len(points), bool)) & (value | ~inside)
     framed = np.zeros(len(points), np.int32)
     seen = np.zeros(len(points), np.int32)
     which = np.full(len(points), -1, np.int32)
-    for g, inside in framed_by.items():
-        framed += inside
-        seen += inside & lit_by[g]
-        which[inside] = g
+    for k, (cam, mask, ahead) in enumerate(zip(cameras, lit, front, strict=True)):
+        if ahead and mask is not None:
+            inside, value = _look_up(cam, mask, points)
+            framed += inside
+            seen += value
+            which[inside] = k
     shape = (len(gu), len(gv))
     return framed.reshape(shape), seen.reshape(shape), which.reshape(shape)
 
 
 def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
            gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
-           front: np.ndarray, viewpoints: np.ndarray | None = None) -> np.ndarray:
+           front: np.ndarray) -> np.ndarray:
     """(len(gu), len(gv)) cells of the plane (``normal``, ``offset``) lit in the views
-    (:data:`MIN_VIEWS`, :data:`LIT_SHARE`, counted by viewpoint)."""
-    framed, seen, _ = _counts(offset, normal, u, v, gu, gv, cameras, lit, front, viewpoints)
+    (:data:`MIN_VIEWS`, :data:`LIT_SHARE`)."""
+    framed, seen, _ = _counts(offset, normal, u, v, gu, gv, cameras, lit, front)
     return (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
-
-
-def _viewpoints(cameras: Sequence[PinholeCamera], distance: float) -> np.ndarray:
-    """(V,) per camera the index of the first camera within :data:`CO_LOCATED_SHARE` x
-    ``distance`` of it (itself where none is)."""
-    centres = np.array([c.center for c in cameras], np.float64).reshape(-1, 3)
-    near = np.linalg.norm(centres[:, None] - centres[None], axis=2) <= CO_LOCATED_SHARE * distance
-    return np.argmax(near, axis=1)
 
 
 def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray,
@@ -348,12 +322,11 @@ def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray
 def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray,
                      gu: np.ndarray, gv: np.ndarray, cameras: Sequence[PinholeCamera],
                      lit: Sequence[np.ndarray | None], front: np.ndarray,
-                     distance: float, viewpoints: np.ndarray | None = None) -> float:
+                     distance: float) -> float:
     """The plane offset within :data:`DEPTH_SWEEP` of the cameras' ``distance`` where the
     views' lit regions on the grid (cell centres ``gu``, ``gv``) coincide: the least spread
-    of their centres, over the views that frame the whole grid, one per viewpoint
-    (``viewpoints``, :func:`_viewpoints`; seen from apart, the views' outlines on a plane
-    at the wrong depth slide apart). ``offset`` unless that
+    of their centres, over the views that frame the whole grid (seen from apart, the
+    views' outlines on a plane at the wrong depth slide apart). ``offset`` unless that
     spread is under :data:`DEPTH_GAIN` of the spread there."""
     uu, vv = np.meshgrid(gu, gv, indexing="ij")
     flat = np.stack([uu.ravel(), vv.ravel()], axis=1)
@@ -370,9 +343,6 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
     # one set of views at every depth, each framing the whole grid and seeing the light
     chosen = [k for k in range(len(cameras))
               if all(row[k] is not None and row[k].sum() >= MIN_CELLS for row in lit_cells)]
-    if viewpoints is not None:  # one view per viewpoint: co-located views show no parallax
-        chosen = [k for i, k in enumerate(chosen)
-                  if viewpoints[k] not in {viewpoints[j] for j in chosen[:i]}]
     if len(chosen) < MIN_VIEWS:
         return offset
     middle = offset * normal + float(np.mean(gu)) * u + float(np.mean(gv)) * v

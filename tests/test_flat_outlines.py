@@ -277,29 +277,6 @@ def test_one_views_panel_lies_at_the_depth_two_views_agreed_on_for_the_ceiling()
     np.testing.assert_allclose(found[0].half_size, PANEL_HALF, atol=0.03)
 
 
-def test_a_darker_frame_shot_where_its_photo_was_is_one_viewpoint_with_it():
-    """The only photo that frames a panel clipped it with a halo round it; a darker frame
-    from the same place, aimed a little aside, measured the panel itself. The two are one
-    viewpoint: the panel is outlined as one view's light, at the panel's size (where both
-    saw light), not judged by two views that have no parallax between them."""
-    photo = look_at([0.3, 1.5, 0.4], PANEL_CENTRE)
-    dark = look_at([0.3, 1.5, 0.4], PANEL_CENTRE + [0.1, 0.0, 0.05])
-    others = [look_at(c, [2.5, 1.2, 0.5]) for c in ([-1.0, 1.4, 1.0], [0.0, 1.6, -1.5])]
-    dirs = photo.ray_directions()
-    t = (3.0 - photo.center[1]) / np.where(dirs[..., 1] > 1e-6, dirs[..., 1], np.nan)
-    hit = photo.center + dirs * t[..., None]
-    with np.errstate(invalid="ignore"):
-        halo = ((np.abs(hit[..., 0] - PANEL_CENTRE[0]) <= PANEL_HALF + 0.1)
-                & (np.abs(hit[..., 2] - PANEL_CENTRE[2]) <= PANEL_HALF + 0.1))
-    cams = [photo, dark, *others]
-    masks = [halo, panel_mask(dark), *(panel_mask(c) for c in others)]
-    planes = [(np.array([0.0, -1.0, 0.0]), -3.0)] + PLANES[2:]
-    (found,) = [o for o in plane_outlines(planes, cams, masks) if o.normal[1] < -0.9]
-    assert found.single_view and found.clean
-    np.testing.assert_allclose(found.centre, PANEL_CENTRE, atol=0.03)
-    np.testing.assert_allclose(found.half_size, PANEL_HALF, atol=0.03)
-
-
 def test_one_views_outline_is_a_light_where_the_fit_drew_its_light_on_the_plane():
     """The fit's light over a one-view outline, on the ceiling (a few centimetres under
     it, as fits leave it), is the outline's; a lamp hanging half a metre under it, or
