@@ -301,8 +301,9 @@ def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray
     labels, count = ndimage.label((seen > 0) & (alone | (framed > 1)),
                                   structure=np.ones((3, 3)))
     ring = np.ones((2 * SINGLE_VIEW_MARGIN + 1,) * 2, bool)
+    alone_cells = np.bincount(labels[alone], minlength=count + 1)  # specks skipped unbuilt
     out = []
-    for lab in range(1, count + 1):
+    for lab in np.flatnonzero(alone_cells >= MIN_CELLS):
         region = labels == lab
         mine = region & alone
         if mine.sum() < MIN_CELLS or good[region].sum() >= MIN_CELLS \

@@ -668,9 +668,8 @@ class Trainer:
         # holds (its splats smeared off into the room, or taken for the light it throws):
         # the rectangle is its light all the same; one view's outline only where the fit
         # drew its light on the plane (the finder may have grouped it with another light)
-        power = np.where(probe.base_colours.max(axis=1) > search.white,
+        power = np.where(search.emitters & (probe.base_colours.max(axis=1) > search.white),
                          probe.base_colours @ weights, 0.0)
-        power[~search.emitters] = 0.0
         for outline in outlines:
             panel = outlined_panel(outline, depth)
             if outline.clean and (not outline.single_view or drawn_on_outline(
