@@ -237,7 +237,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         # one view cannot sweep the plane: where two views moved it under their lights,
         # the plane (a flat ceiling) is there under one view's light too
         at = float(np.median(swept)) if swept else offset
-        framed, seen, which = _counts(at, normal, u, v, gu, gv, cameras, lit, front)
+        framed, seen, which = lit_counts(at, normal, u, v, gu, gv, cameras, lit, front)
         good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
         for region in _single_view_regions(framed, seen, which, good):
             outline = _outline_of(region, gu, gv, cell, at, normal, u, v)
@@ -251,7 +251,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
     return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
 
 
-def _look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
+def look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
     """Per point (N, 3): whether ``cam`` frames it, and ``mask`` (H, W, at any size)
     there (False where it does not frame it)."""
@@ -261,7 +261,7 @@ def _look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
     return inside, value
 
 
-def _counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
+def lit_counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
             gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
             front: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per cell of the plane (``normal``, ``offset``), ``(len(gu), len(gv))`` each: how
@@ -273,7 +273,7 @@ def _counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu:
     which = np.full(len(points), -1, np.int32)
     for k, (cam, mask, ahead) in enumerate(zip(cameras, lit, front, strict=True)):
         if ahead and mask is not None:
-            inside, value = _look_up(cam, mask, points)
+            inside, value = look_up(cam, mask, points)
             framed += inside
             seen += value
             which[inside] = k
@@ -286,7 +286,7 @@ def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: 
            front: np.ndarray) -> np.ndarray:
     """(len(gu), len(gv)) cells of the plane (``normal``, ``offset``) lit in the views
     (:data:`MIN_VIEWS`, :data:`LIT_SHARE`)."""
-    framed, seen, _ = _counts(offset, normal, u, v, gu, gv, cameras, lit, front)
+    framed, seen, _ = lit_counts(offset, normal, u, v, gu, gv, cameras, lit, front)
     return (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
 
 
@@ -337,7 +337,7 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
         points = (offset + step) * normal + flat[:, :1] * u + flat[:, 1:] * v
         row: list[np.ndarray | None] = []
         for cam, mask, ahead in zip(cameras, lit, front, strict=True):
-            inside, value = (_look_up(cam, mask, points) if ahead and mask is not None
+            inside, value = (look_up(cam, mask, points) if ahead and mask is not None
                              else (None, None))
             row.append(value if inside is not None and inside.all() else None)
         lit_cells.append(row)

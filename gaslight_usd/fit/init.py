@@ -37,6 +37,7 @@ from ..colour import luminance_weights
 from ..poses import colour_points
 from ..poses.colmap import ColmapModel
 from .light_seeds import LightSeedPoints
+from .lit_floor import LitFloor
 
 
 def neighbour_scales(points: np.ndarray) -> np.ndarray:
@@ -203,12 +204,52 @@ def _onto_seeds(cam: PinholeCamera, px: np.ndarray, swept: np.ndarray, centres: 
     return out
 
 
+def above_floor(eye: np.ndarray, points: np.ndarray, room_floor: LitFloor | None,
+                view: int | None = None) -> np.ndarray:
+    """``points`` (n, 3) seen from ``eye``, those under ``room_floor`` moved back along
+    their rays onto it: nothing a view sees lies under the floor (a floor's pixels
+    filled from the walls' planes carried down did, :mod:`.lit_floor`). With ``view``
+    (the index of the view looking from ``eye``), a point whose ray meets the floor
+    where that view saw the lit patch goes onto it too, from in front of it as well."""
+    if room_floor is None or not len(points):
+        return points
+    normal, offset = room_floor.normal, room_floor.offset
+    rays = points - eye
+    height = float(eye @ normal) - offset
+    drop = rays @ normal
+    down = (drop < 0) & (height > 0)
+    scale = np.where(down, height / np.where(down, -drop, 1.0), 1.0)
+    crossing = eye + rays * scale[:, None]
+    move = down & (points @ normal < offset)
+    if view is not None:
+        move |= down & room_floor.lit_at(view, crossing)
+    out = points.copy()
+    out[move] = crossing[move]
+    return out
+
+
+def _more_consistent(v: int, px: np.ndarray, first: np.ndarray, second: np.ndarray,
+                     cameras: list[PinholeCamera], images: list[np.ndarray]) -> np.ndarray:
+    """(n, 3): per pixel of view ``v``'s ``px``, ``first`` where the other views agree on
+    its colour there better than at ``second`` (:func:`consistency_costs`), else
+    ``second``."""
+    differ = np.any(first != second, axis=1)
+    if not differ.any():
+        return second
+    cost = consistency_costs(v, px[differ], np.stack([first[differ], second[differ]], 1),
+                             cameras, images)
+    out = second.copy()
+    take = np.flatnonzero(differ)[cost[:, 0] < cost[:, 1]]
+    out[take] = first[take]
+    return out
+
+
 def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
                   rng: np.random.Generator, ratio: float = BRIGHT_RATIO,
                   depth_steps: int = 48, floors: list[np.ndarray | None] | None = None,
                   y_weights: np.ndarray | None = None,
-                  seeds: tuple[np.ndarray, np.ndarray] | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  seeds: tuple[np.ndarray, np.ndarray] | None = None,
+                  room_floor: LitFloor | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Points on light sources: pixels over ``ratio`` x the median of all views, plane-swept.
 
     Lamps and windows have no features to triangulate and sit off the
@@ -227,6 +268,7 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
     few times the white) agree with its thousands nowhere, so the sweep put ``bulb:11``'s
     dark-frame pixels 0.1-14 m off, and the fit grew a bright smear along the dark
     frame's rays and opaque splats round it that hid the bulb from the room.
+    ``room_floor``: none goes under it (:func:`above_floor`).
     """
     luma = _luma(y_weights)
     lum = [im @ luma for im in images]
@@ -250,7 +292,7 @@ def bright_points(cameras: list[PinholeCamera], images: list[np.ndarray], count:
         if seeds is not None and floors is not None and len(seeds[0]):
             measured = ~clipped[-1]
             at[measured] = _onto_seeds(cameras[v], px[measured], at[measured], *seeds)
-        pts.append(at)
+        pts.append(above_floor(cameras[v].center, at, room_floor, v))
         cols.append(_sample(images[v], px))
     if not pts:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
@@ -302,15 +344,10 @@ def fill_depths(px: np.ndarray, near_uv: np.ndarray, near_depth: np.ndarray) -> 
     return np.where(planar, 1.0 / np.where(planar, at, 1.0), np.median(near_depth, axis=1))
 
 
-def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
-                        cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
-                        rng: np.random.Generator, neighbours: int | None = None,
-                        planar: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """(n <= count, 3) points on the views' surfaces and their HDR colours (module doc);
-    ``planar`` off: each pixel at its 4 nearest neighbours' median depth (the fill
-    before the planes, whose geometry the handling of clipped lights was tuned on);
-    on, the 6 nearest (an affine fit needs more than 3)."""
-    neighbours = neighbours or (6 if planar else 4)
+def _neighbours_per_view(points: np.ndarray, seen: np.ndarray | None,
+                         cameras: list[PinholeCamera]) -> tuple[list, list]:
+    """Per view, the image positions (m, 2) and depths (m,) of the ``points`` it sees
+    (its track's, with ``seen``, else those in its frame)."""
     rays_per_view, depths_per_view = [], []
     for v, cam in enumerate(cameras):
         uv, z = cam.project(points)
@@ -320,6 +357,38 @@ def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
             ok &= seen[v]
         rays_per_view.append(uv[ok])
         depths_per_view.append(z[ok])
+    return rays_per_view, depths_per_view
+
+
+def _filled(cam: PinholeCamera, px: np.ndarray, near_uv: np.ndarray, near_depth: np.ndarray,
+            neighbours: int, planar: bool) -> np.ndarray:
+    """(n, 3) pixels ``px`` of ``cam`` at the depth their nearest sparse neighbours
+    (image positions ``near_uv``, depths ``near_depth``) imply (:func:`fill_depths`)."""
+    _, near = cKDTree(near_uv).query(px, k=neighbours)
+    depth = (fill_depths(px, near_uv[near], near_depth[near]) if planar
+             else np.median(near_depth[near], axis=1))
+    return cam.center + depth_rays(cam, px) * depth[:, None]
+
+
+def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
+                        cameras: list[PinholeCamera], images: list[np.ndarray], count: int,
+                        rng: np.random.Generator, neighbours: int | None = None,
+                        planar: bool = True, room_floor: LitFloor | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
+    """(n <= count, 3) points on the views' surfaces and their HDR colours (module doc);
+    ``planar`` off: each pixel at its 4 nearest neighbours' median depth (the fill
+    before the planes, whose geometry the handling of clipped lights was tuned on);
+    on, the 6 nearest (an affine fit needs more than 3). ``room_floor``: its lit patch's
+    cells join the sparse points as neighbours where the views agree better on the
+    colour at the depth they give, a pixel whose ray meets the floor where the view saw
+    the patch lit goes there, and none goes under it (:func:`above_floor`)."""
+    neighbours = neighbours or (6 if planar else 4)
+    rays_per_view, depths_per_view = _neighbours_per_view(points, seen, cameras)
+    with_floor = None
+    if room_floor is not None and len(room_floor.points):
+        with_floor = _neighbours_per_view(
+            np.concatenate([points, room_floor.points]),
+            None if seen is None else np.concatenate([seen, room_floor.seen], axis=1), cameras)
     usable = [v for v in range(len(cameras)) if len(depths_per_view[v]) >= neighbours]
     if not usable or count <= 0:
         return np.zeros((0, 3)), np.zeros((0, 3), np.float32)
@@ -328,10 +397,16 @@ def surface_fill_points(points: np.ndarray, seen: np.ndarray | None,
     for v, n in zip(usable, share, strict=True):
         cam = cameras[v]
         px = rng.uniform([0, 0], [cam.width, cam.height], (n, 2))
-        _, near = cKDTree(rays_per_view[v]).query(px, k=neighbours)
-        depth = (fill_depths(px, rays_per_view[v][near], depths_per_view[v][near]) if planar
-                 else np.median(depths_per_view[v][near], axis=1))
-        pts.append(cam.center + depth_rays(cam, px) * depth[:, None])
+        at = _filled(cam, px, rays_per_view[v], depths_per_view[v], neighbours, planar)
+        if with_floor is not None:
+            # the patch's cells are points on the floor as good as the sparse ones, but
+            # far denser: a wall pixel over the patch whose neighbours they crowd takes
+            # a depth between the two, so each pixel keeps the fill the views agree on
+            near_floor = _filled(cam, px, with_floor[0][v], with_floor[1][v], neighbours,
+                                 planar)
+            at = _more_consistent(v, px, above_floor(cam.center, near_floor, room_floor, v),
+                                  above_floor(cam.center, at, room_floor, v), cameras, images)
+        pts.append(at)
         cols.append(_sample(images[v], px))
     return np.concatenate(pts), np.concatenate(cols).astype(np.float32)
 
@@ -340,8 +415,8 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
                    names: list[str], count: int, rng: np.random.Generator,
                    floors: list[np.ndarray | None] | None = None,
                    y_weights: np.ndarray | None = None,
-                   seeded: LightSeedPoints | None = None, planar_fill: bool = True
-                   ) -> tuple[np.ndarray, np.ndarray, str]:
+                   seeded: LightSeedPoints | None = None, planar_fill: bool = True,
+                   room_floor: LitFloor | None = None) -> tuple[np.ndarray, np.ndarray, str]:
     """Points, HDR colours and how they were made.
 
     "sparse points + surface fill" when the model has points, else "plane sweep";
@@ -351,12 +426,13 @@ def initial_points(model: ColmapModel, cameras: list[PinholeCamera], images: lis
     their neighbours' plane (:func:`fill_depths`), else to their median depth.
     ``floors``: the views' clip floors (None: every pixel measured), for the lights'
     colours (:func:`bright_points`); ``y_weights``: the views' luminance weights
-    (default Rec.709's), to find the lights.
+    (default Rec.709's), to find the lights; ``room_floor``: a floor the sparse points
+    miss (:mod:`.lit_floor`), for the fill and the lights' points.
     """
     known = (None if seeded is None or seeded.centres is None or seeded.sizes is None
              else (seeded.centres, seeded.sizes))
     pts, cols, how = _unseeded_points(model, cameras, images, names, count, rng, floors,
-                                      y_weights, planar_fill, known)
+                                      y_weights, planar_fill, known, room_floor)
     if seeded is not None:
         seeded = seeded.missing_from(pts)
     if seeded is not None and seeded.lights:
@@ -372,7 +448,8 @@ def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
                      images: list[np.ndarray], names: list[str], count: int,
                      rng: np.random.Generator, floors: list[np.ndarray | None] | None,
                      y_weights: np.ndarray | None, planar_fill: bool = True,
-                     seeds: tuple[np.ndarray, np.ndarray] | None = None
+                     seeds: tuple[np.ndarray, np.ndarray] | None = None,
+                     room_floor: LitFloor | None = None
                      ) -> tuple[np.ndarray, np.ndarray, str]:
     if len(model.points) >= 16:
         colours = colour_points(model, dict(zip(names, images, strict=True)))
@@ -381,12 +458,13 @@ def _unseeded_points(model: ColmapModel, cameras: list[PinholeCamera],
             pick = np.sort(rng.choice(len(pts), count // 2, replace=False))
             pts, colours = pts[pick], colours[pick]
         lights, light_colours = bright_points(cameras, images, int(BRIGHT_SHARE * count), rng,
-                                              floors=floors, y_weights=y_weights, seeds=seeds)
+                                              floors=floors, y_weights=y_weights, seeds=seeds,
+                                              room_floor=room_floor)
         seen = seen_by(model, names)
         fill, fill_colours = surface_fill_points(np.asarray(model.points, np.float64), seen,
                                                  cameras, images,
                                                  count - len(pts) - len(lights), rng,
-                                                 planar=planar_fill)
+                                                 planar=planar_fill, room_floor=room_floor)
         return (np.concatenate([pts, lights, fill]),
                 np.concatenate([colours, light_colours, fill_colours]),
                 "sparse points + surface fill + light sources")

@@ -65,6 +65,7 @@ from .light_seeds import (
     measured_light_seeds,
     seed_points,
 )
+from .lit_floor import LitFloor, find_lit_floor, floor_plane, room_vertical
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .planes import (
@@ -160,10 +161,14 @@ class Trainer:
         imgs = [self.data.images[i] for i in self.train]
         names = [self.data.names[i] for i in self.train]
         floors = [self.data.floor(i) for i in self.train] if cfg.clip_bounds else None
+        up = np.mean([-c.R[1] for c in cams], axis=0)
+        self.lit_floor = self._find_lit_floor(cams, up)
+        self.lit_floor_info = None if self.lit_floor is None else self.lit_floor.as_dict()
+        """What the fit's metrics report of it (kept through a checkpoint)."""
         pts, cols, how = initial_points(self._init_model(), cams, imgs, names,
                                         min(cfg.init_points, cfg.budget), rng, floors,
                                         self.y_weights.cpu().numpy(), self._seeded_lights(),
-                                        planar_fill=self.use_planes)
+                                        planar_fill=self.use_planes, room_floor=self.lit_floor)
         lrs = {"means": cfg.lr_means * self.extent, "quats": cfg.lr_quats,
                "log_scales": cfg.lr_scales, "opacity_logits": cfg.lr_opacity,
                "log_colour": cfg.lr_colour, "sh_rel": cfg.lr_sh}
@@ -177,13 +182,16 @@ class Trainer:
         """The room's box among the large planes of the initial points
         (:func:`.planes.room_box`), with the ceiling where its walls stop if none was found
         (:func:`.planes.ceiling_from_walls`) and a window's wall too sparse to be found
-        (:func:`.planes.far_walls`): the bound on a sunk light's move and the planes a
-        window's splats are put on (:mod:`.sunk_lights`)."""
-        up = np.mean([-c.R[1] for c in cams], axis=0)
+        (:func:`.planes.far_walls`) and a floor the views' lit patch pins
+        (:mod:`.lit_floor`): the bound on a sunk light's move and the planes a window's
+        splats are put on (:mod:`.sunk_lights`)."""
         ceiling = ceiling_from_walls(self.room_planes, pts, found[1], up)
         if ceiling is not None:
             self.room_planes.append(ceiling)
         self.room_planes += far_walls(self.room_planes, pts, centres, found[1], up)
+        floor = floor_plane(self.lit_floor, self.room_planes, pts)
+        if floor is not None:
+            self.room_planes.append(floor)
         if self.use_planes:
             self.planes = PlanePrior(*found, self.device)
             self._assign_planes()
@@ -202,6 +210,16 @@ class Trainer:
         self.holes_filled: dict[str, Any] = {"splats": 0, "freed": 0, "empty_pixels": {}}
         """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
         self._reset_stats()
+
+    def _find_lit_floor(self, cams: list, up: np.ndarray) -> LitFloor | None:
+        """The floor the training views' lit patch pins (:mod:`.lit_floor`), where the
+        sparse points miss it."""
+        points = np.asarray(self._init_model().points, np.float64)
+        masks = lit_masks([self.data.images[i] for i in self.train],
+                          [self.data.floor(i) for i in self.train],
+                          self.y_weights.cpu().numpy())
+        vertical = room_vertical(points, up, np.random.default_rng([self.seed, 13]))
+        return find_lit_floor(cams, masks, vertical, points)
 
     def _init_model(self):
         """The poses' model, with points triangulated from the views when it has none
@@ -248,6 +266,7 @@ class Trainer:
                 "floaters_moved": self.floaters_moved,
                 "holes_filled": self.holes_filled,
                 "room_planes": [asdict(plane) for plane in self.room_planes],
+                "lit_floor": self.lit_floor_info,
                 "poses": self.refiner.state_dict() if self.refiner else None,
                 "planes": self.planes.state_dict() if self.planes else None}
 
@@ -268,6 +287,7 @@ class Trainer:
         self.floaters_moved = int(state.get("floaters_moved", 0))
         self.holes_filled = state.get("holes_filled", {"splats": 0, "freed": 0, "empty_pixels": {}})
         self.room_planes = [Plane(**plane) for plane in state.get("room_planes", [])]
+        self.lit_floor_info = state.get("lit_floor")
         self.planes = (PlanePrior.from_state(state["planes"], self.device)
                        if state.get("planes") is not None else None)
         self.refiner = None
@@ -923,6 +943,7 @@ class Trainer:
             "init": self.init_method,
             "planes": self.planes.as_dict() if self.planes is not None else None,
             "room_box": [plane.as_dict() for plane in self.room_planes],
+            "lit_floor": self.lit_floor_info,
             "fit_seconds": round(seconds, 2),
             "init_seconds": round(init_seconds, 2),
             "resumed": resumed,

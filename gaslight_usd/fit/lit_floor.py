@@ -1,0 +1,213 @@
+"""A floor the sparse points miss, found where the views' lit patch on it agrees.
+
+A plain floor has no features, and furniture hides its edges from the walls' points, so
+the sparse points often hold none of it (the chain bench's ``sun`` room: its lowest
+point 0.23 m up) and the fit's start fills floor pixels from the walls' planes carried
+down: a sunlit patch on the floor, the room's brightest surface, started 1 m over to
+1.5 m under the floor, and the fit drew it there. Yet every view that sees the patch
+outlines it sharply (clipped in a photo, many times the room's median in an HDR view):
+on a horizontal plane at the floor's height the views' outlines of it coincide, and
+above or below it they slide apart. So horizontal planes below the cameras and the
+points are swept, each scored by how much the views' lit cells on it disagree (cells
+some views saw lit and others, framing them too, saw dark), and the floor is where they
+disagree least, when that is well under the sweep's typical disagreement
+(:data:`MAX_DISAGREEMENT`, :data:`DIP`). A room with no lit patch on its floor has
+none: nothing agrees anywhere under the cameras.
+
+The fit's start puts its fill on it (:func:`gaslight_usd.fit.init.surface_fill_points`:
+the patch's cells join the sparse points as neighbours, and nothing is filled under the
+floor), and the room's box bounds with it (:mod:`.sunk_lights`, the outlines).
+Measured by ``gaslight2usd bench --suite chain`` (``sun`` rooms: the probes in the
+middle and by the patch).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..cameras import PinholeCamera
+from ..flat_outlines import LIT_SHARE, MIN_CELLS, MIN_VIEWS, look_up
+from .planes import INLIER_SHARE, OWN_TILT, UP_TILT, Plane, main_axes
+
+SWEEP_SHARE = 1.5
+"""Heights are swept from the lowest camera down this many times the sparse points'
+vertical spread (their 2-98 % range)..."""
+ABOVE_POINTS = 0.03
+"""...up to the points' lowest 2 % plus this share of that spread: a floor holds no
+point under it (a desk's lit top, with the floor's points below it, is no floor)."""
+COARSE_STEPS = 48
+"""Heights tried on the coarse pass; then the best is refined :data:`FINE_STEPS` each way
+at a tenth of the step."""
+FINE_STEPS = 10
+CELL_SHARE = 0.01
+"""A cell's side on the swept planes, as a share of the points' vertical spread (the
+fine pass halves it)."""
+MAX_DISAGREEMENT = 0.35
+"""A floor's views disagree on at most this share of their lit votes... (``sun:5``'s
+true HDR views: 0.25 at the floor, 0.5-1.0 a metre off it)"""
+DIP = 0.6
+"""...and on at most this share of the sweep's median disagreement."""
+
+
+@dataclass
+class LitFloor:
+    """The floor under the cameras where the views' lit patch lies."""
+
+    normal: np.ndarray
+    """(3,) unit, up (towards the cameras)."""
+    offset: float
+    """normal . x of the floor's points."""
+    points: np.ndarray
+    """(K, 3) the centres of the cells the views agree are lit on it (the patch)."""
+    seen: np.ndarray
+    """(V, K) bool: which views saw each of them lit."""
+    disagreement: float
+    """The share of the views' lit votes on it that other views framing the cell contradict."""
+    cell: float
+    """The side of the cells ``points`` are the centres of."""
+
+    def lit_at(self, view: int, points: np.ndarray) -> np.ndarray:
+        """(n,) whether each of ``points`` (n, 3), on the floor, lies in a cell ``view``
+        saw lit."""
+        if not len(self.points) or not len(points):
+            return np.zeros(len(points), bool)
+        dist, near = cKDTree(self.points).query(points)
+        return (dist <= self.cell) & self.seen[view][near]
+
+    def as_dict(self) -> dict:
+        return {"normal": [round(float(x), 5) for x in self.normal],
+                "offset": round(float(self.offset), 5), "cells": int(len(self.points)),
+                "disagreement": round(float(self.disagreement), 4)}
+
+
+def _in_plane_axes(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    other = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    u = other - (other @ normal) * normal
+    u /= np.linalg.norm(u)
+    return u, np.cross(normal, u)
+
+
+def room_vertical(points: np.ndarray, up: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The room's vertical: of the main directions of the points' planes
+    (:func:`.planes.main_axes`), the one nearest ``up`` (the cameras' mean up, which
+    leans with the way they look: 1.8 deg on ``sun:5``, 9 cm over its floor) where it
+    is within :data:`.planes.UP_TILT` of it, else ``up``."""
+    up = np.asarray(up, np.float64) / np.linalg.norm(up)
+    if len(points) < MIN_CELLS:
+        return up
+    lo, hi = np.percentile(points, [2, 98], axis=0)
+    axes = main_axes(points, INLIER_SHARE * float(np.linalg.norm(hi - lo)), rng)
+    if not len(axes):
+        return up
+    best = axes[int(np.argmax(np.abs(axes @ up)))]
+    best = best * np.sign(best @ up)
+    return best if best @ up >= UP_TILT else up
+
+
+def _lit_rays(cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None]
+              ) -> list[np.ndarray]:
+    """Per view, the world directions (n, 3) through the centres of its lit pixels."""
+    out = []
+    for cam, mask in zip(cameras, lit, strict=True):
+        if mask is None:
+            out.append(np.zeros((0, 3)))
+            continue
+        y, x = np.nonzero(mask)
+        px = (x + 0.5) * cam.width / mask.shape[1]
+        py = (y + 0.5) * cam.height / mask.shape[0]
+        out.append(np.stack([(px - cam.cx) / cam.fx, (py - cam.cy) / cam.fy,
+                             np.ones(len(px))], -1) @ cam.R)
+    return out
+
+
+def disagreement(height: float, normal: np.ndarray, cell: float,
+                 cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
+                 rays: Sequence[np.ndarray]) -> tuple[float, np.ndarray, np.ndarray]:
+    """(the share of lit votes contradicted, the lit cells' centres (K, 3), which views saw
+    each lit (V, K)) on the plane at ``height``, cut in cells of side ``cell``: the cells
+    some view's lit pixels (``rays``, :func:`_lit_rays`) land in, each looked up in the
+    views that frame it; a lit vote is contradicted where fewer of those views saw the
+    cell lit than dark (``min(seen, framed - seen) / seen`` over the cells
+    :data:`MIN_VIEWS` views frame); inf where they cast fewer than :data:`MIN_CELLS`."""
+    u, v = _in_plane_axes(normal)
+    hits = []
+    for cam, dirs in zip(cameras, rays, strict=True):
+        down = dirs @ normal
+        t = (height - cam.center @ normal) / np.where(down < 0, down, -np.inf)
+        at = cam.center + dirs[t > 0] * t[t > 0, None]
+        hits.append(np.floor(np.stack([at @ u, at @ v], 1) / cell).astype(np.int64))
+    cells = np.unique(np.concatenate(hits), axis=0) if hits else np.zeros((0, 2), np.int64)
+    centres = height * normal + (cells[:, :1] + 0.5) * cell * u + (cells[:, 1:] + 0.5) * cell * v
+    framed = np.zeros(len(centres), np.int32)
+    seen = np.zeros((len(cameras), len(centres)), bool)
+    for k, (cam, mask) in enumerate(zip(cameras, lit, strict=True)):
+        if mask is not None and cam.center @ normal > height:
+            inside, seen[k] = look_up(cam, mask, centres)
+            framed += inside
+    lit_votes = seen.sum(0)
+    judged = framed >= MIN_VIEWS
+    votes = int(lit_votes[judged].sum())
+    if votes < MIN_CELLS:
+        return float("inf"), centres, seen
+    contradicted = np.minimum(lit_votes, framed - lit_votes)[judged].sum()
+    good = judged & (lit_votes >= LIT_SHARE * np.maximum(framed, 1))
+    return float(contradicted / votes), centres[good], seen[:, good]
+
+
+def find_lit_floor(cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
+                   up: np.ndarray, points: np.ndarray) -> LitFloor | None:
+    """The floor under ``cameras`` where their ``lit`` masks (:func:`gaslight_usd.
+    flat_outlines.lit_masks`; None: the view does not count) agree (module docstring),
+    ``up`` the room's vertical (:func:`room_vertical`), ``points`` (N, 3) the sparse
+    points; None where no lit patch pins one."""
+    up = np.asarray(up, np.float64)
+    norm = float(np.linalg.norm(up))
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    if norm == 0 or len(points) < MIN_CELLS or len(cameras) < MIN_VIEWS:
+        return None
+    up = up / norm
+    centres = np.array([c.center for c in cameras], np.float64)
+    low, high = np.percentile(points @ up, [2, 98])
+    spread = float(high - low)
+    lowest_camera = float((centres @ up).min())
+    top = min(low + ABOVE_POINTS * spread, lowest_camera - ABOVE_POINTS * spread)
+    bottom = lowest_camera - SWEEP_SHARE * spread
+    if spread <= 0 or top <= bottom:
+        return None
+    rays = _lit_rays(cameras, lit)
+    coarse = np.linspace(bottom, top, COARSE_STEPS)
+    scores = np.array([disagreement(h, up, CELL_SHARE * spread, cameras, lit, rays)[0]
+                       for h in coarse])
+    finite = np.isfinite(scores)
+    if finite.sum() < 3:
+        return None
+    best = int(np.argmin(np.where(finite, scores, np.inf)))
+    fine = coarse[best] + (np.arange(-FINE_STEPS, FINE_STEPS + 1) / FINE_STEPS
+                           * (coarse[1] - coarse[0]))
+    fine = fine[fine <= top]
+    refined = [disagreement(h, up, CELL_SHARE * spread / 2, cameras, lit, rays) for h in fine]
+    pick = int(np.argmin([r[0] for r in refined]))
+    score, cells, seen = refined[pick]
+    if not (score <= MAX_DISAGREEMENT and score <= DIP * float(np.median(scores[finite]))
+            and len(cells) >= MIN_CELLS):
+        return None
+    return LitFloor(normal=up, offset=float(fine[pick]), points=cells, seen=seen,
+                    disagreement=score, cell=CELL_SHARE * spread / 2)
+
+
+def floor_plane(floor: LitFloor | None, box: Sequence[Plane], points: np.ndarray
+                ) -> Plane | None:
+    """``floor`` as a plane of the room's box (:func:`.planes.room_box`) where the box has
+    no floor, its patch the ``points``' (N, 3) spread over it (2-98 %)."""
+    if floor is None or any(p.normal @ floor.normal > 1 - OWN_TILT ** 2 / 2 for p in box):
+        return None
+    axes = np.stack(_in_plane_axes(floor.normal))
+    uv = np.asarray(points, np.float64).reshape(-1, 3) @ axes.T
+    if not len(uv):
+        return None
+    lo, hi = np.percentile(uv, 2, axis=0), np.percentile(uv, 98, axis=0)
+    return Plane(floor.normal.copy(), floor.offset, lo, hi, axes, len(floor.points))
