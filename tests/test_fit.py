@@ -83,6 +83,7 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     report = json.loads((tmp_path / "report.json").read_text())
     fit_stage = next(stage for stage in report["stages"] if stage["name"] == "fit")
     assert isinstance(fit_stage["metrics"]["room_box"], list)  # what bounds lights' moves
+    assert fit_stage["metrics"]["lit_floor"] is None  # no lit patch on a floor to pin one
     # true HDR views clip nothing: no clipped patch for fit.holes to seed
     assert fit_stage["metrics"]["holes_filled"]["splats"] == 0
     assert not list(tmp_path.glob(".*checkpoint*"))
