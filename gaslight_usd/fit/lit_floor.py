@@ -4,21 +4,28 @@ A plain floor has no features, and furniture hides its edges from the walls' poi
 the sparse points often hold none of it (the chain bench's ``sun`` room: its lowest
 point 0.23 m up) and the fit's start fills floor pixels from the walls' planes carried
 down: a sunlit patch on the floor, the room's brightest surface, started 1 m over to
-1.5 m under the floor, and the fit drew it there. Yet every view that sees the patch
-outlines it sharply (clipped in a photo, many times the room's median in an HDR view):
-on a horizontal plane at the floor's height the views' outlines of it coincide, and
-above or below it they slide apart. So horizontal planes below the cameras and the
-points are swept, each scored by how much the views' lit cells on it disagree (cells
-some views saw lit and others, framing them too, saw dark), and the floor is where they
-disagree least, when that is well under the sweep's typical disagreement
+1.5 m under the floor, and the fit drew it there. Yet every view that measured the
+patch outlines it sharply (many times the room's median): on a horizontal plane at the
+floor's height the views' outlines of it coincide, and above or below it they slide
+apart. So horizontal planes below the cameras and the points are swept, each scored by
+how much the views' lit cells on it disagree (cells some views saw lit and others,
+framing them too, saw dark), and the floor is where they disagree least, when that is
+well under the sweep's typical disagreement
 (:data:`MAX_DISAGREEMENT`, :data:`DIP`). A room with no lit patch on its floor has
 none: nothing agrees anywhere under the cameras.
 
-The fit's start puts its fill on it (:func:`gaslight_usd.fit.init.surface_fill_points`:
-the patch's cells join the sparse points as neighbours, and nothing is filled under the
-floor), and the room's box bounds with it (:mod:`.sunk_lights`, the outlines).
-Measured by ``gaslight2usd bench --suite chain`` (``sun`` rooms: the probes in the
-middle and by the patch).
+Photos' clipped outlines disagree at every height (each holds whatever passed that
+photo's white, more of it the longer the exposure), so from photos, darker frames
+included, no floor is found: only from views that measured the patch (true HDR views,
+merged brackets).
+
+The fit's start puts the patch and the floor round it on it
+(:func:`gaslight_usd.fit.init.surface_fill_points`: a pixel takes the depth the patch's
+cells and the sparse points give where the views agree on its colour better there, the
+patch's own pixels go onto it, nothing is filled under it), and the room's box bounds
+with it (:mod:`.sunk_lights`, the outlines). Measured by ``gaslight2usd bench --suite
+chain`` (``sun`` rooms: the probes in the middle and over the patch; figures in
+``docs/measurements.md``, session 52).
 """
 
 from __future__ import annotations
