@@ -14,10 +14,10 @@ well under the sweep's typical disagreement
 (:data:`MAX_DISAGREEMENT`, :data:`DIP`). A room with no lit patch on its floor has
 none: nothing agrees anywhere under the cameras.
 
-Photos' clipped outlines disagree at every height (each holds whatever passed that
-photo's white, more of it the longer the exposure), so from photos, darker frames
-included, no floor is found: only from views that measured the patch (true HDR views,
-merged brackets).
+Photos' clipped outlines mostly disagree at every height (each holds whatever passed
+that photo's white, more of it the longer the exposure), so from photos, darker frames
+included, a floor is seldom found: it is found from views that measured the patch (true
+HDR views, merged brackets).
 
 The fit's start puts the patch and the floor round it on it
 (:func:`gaslight_usd.fit.init.surface_fill_points`: a pixel takes the depth the patch's
