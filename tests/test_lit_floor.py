@@ -123,3 +123,22 @@ def test_nothing_is_filled_under_the_floor():
     on = ((after[:, [0, 2]] > PATCH[0] + 0.05) & (after[:, [0, 2]] < PATCH[1] - 0.05)).all(1)
     assert (on & (np.abs(after[:, 1] - found.offset) < 1e-6)).sum() > 50
     assert (on & (np.abs(before[:, 1]) < 1e-6)).sum() == 0
+
+
+def test_the_starts_splats_on_the_floor_are_discs_lying_on_it():
+    import torch
+
+    from gaslight_usd.fit.lit_floor import floor_discs
+    from gaslight_usd.render.project import quat_to_rotmat
+
+    cams = cameras()
+    found = find_lit_floor(cams, [patch_mask(c) for c in cams], UP,
+                           wall_points(np.random.default_rng(8)))
+    points = np.array([[0.0, found.offset, 0.4], [1.0, found.offset + 0.004, -1.0],
+                       [0.0, 0.5, 0.0], [2.5, 1.0, 0.0]])
+    on, quat = floor_discs(points, found, 0.005)
+    assert on.tolist() == [0, 1]
+    # the splat's z axis (the one the trainer shrinks) turned to the floor's normal
+    axes = quat_to_rotmat(torch.as_tensor(quat[None], dtype=torch.float64))[0].numpy()
+    np.testing.assert_allclose(axes[:, 2], found.normal, atol=1e-9)
+    assert floor_discs(points, None, 0.005)[0].size == 0

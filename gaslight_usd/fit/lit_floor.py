@@ -22,9 +22,10 @@ HDR views, merged brackets).
 The fit's start puts the patch and the floor round it on it
 (:func:`gaslight_usd.fit.init.surface_fill_points`: a pixel takes the depth the patch's
 cells and the sparse points give where the views agree on its colour better there, the
-patch's own pixels go onto it, nothing is filled under it), and the room's box bounds
-with it (:mod:`.sunk_lights`, the outlines). Measured by ``gaslight2usd bench --suite
-chain`` (``sun`` rooms: the probes in the middle and over the patch; figures in
+patch's own pixels go onto it, nothing is filled under it), its splats there start as
+discs lying on it (:func:`floor_discs`), and the room's box bounds with it
+(:mod:`.sunk_lights`, the outlines). Measured by ``gaslight2usd bench --suite chain``
+(``sun`` rooms: the probes in the middle and over the patch; figures in
 ``docs/measurements.md``, session 52).
 """
 
@@ -218,3 +219,26 @@ def floor_plane(floor: LitFloor | None, box: Sequence[Plane], points: np.ndarray
         return None
     lo, hi = np.percentile(uv, 2, axis=0), np.percentile(uv, 98, axis=0)
     return Plane(floor.normal.copy(), floor.offset, lo, hi, axes, len(floor.points))
+
+
+FLAT = 0.1
+"""The start's splats on a lit floor are discs this thin across it (their side's share)."""
+
+
+def floor_discs(points: np.ndarray, floor: LitFloor | None, tolerance: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(indices of the ``points`` (N, 3) within ``tolerance`` of ``floor``, the unit
+    quaternion w x y z that turns a splat's z axis to the floor's normal): the start's
+    splats there are made discs lying on it (the trainer shrinks that axis by
+    :data:`FLAT`). Round, a lit patch's splats (opacity about 0.25 each) covered it less
+    from straight above than from the photos' slant, and the patch read 0.14-0.43 stops
+    short from the room's middle; a flatter fit everywhere cost 2 dB (``docs/
+    measurements.md``, session 52)."""
+    if floor is None or not len(points):
+        return np.zeros(0, np.int64), np.array([1.0, 0.0, 0.0, 0.0])
+    normal = np.asarray(floor.normal, np.float64)
+    on = np.flatnonzero(np.abs(np.asarray(points) @ normal - floor.offset) <= tolerance)
+    if normal[2] < -1 + 1e-9:  # z turned to -z: half a turn about x
+        return on, np.array([0.0, 1.0, 0.0, 0.0])
+    quat = np.concatenate([[1.0 + normal[2]], np.cross([0.0, 0.0, 1.0], normal)])
+    return on, quat / np.linalg.norm(quat)

@@ -65,7 +65,7 @@ from .light_seeds import (
     measured_light_seeds,
     seed_points,
 )
-from .lit_floor import LitFloor, find_lit_floor, floor_plane, room_vertical
+from .lit_floor import FLAT, LitFloor, find_lit_floor, floor_discs, floor_plane, room_vertical
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .planes import (
@@ -85,6 +85,9 @@ from .single_view import BRIGHT_RATIO, single_view_lights
 from .sunk_lights import RULES, SurfacedLights, surface_sunk_lights
 from .triangulate import triangulate_views
 
+FLOOR_TOLERANCE = 0.005
+"""A start's splat within this share of the cameras' extent of the lit floor lies on it
+(the fill puts the patch's pixels on it exactly, its neighbours' within a centimetre)."""
 MIN_CONTRIBUTION = 0.02
 """Pixel-equivalents of blend weight (x relative brightness) under which a splat is pruned."""
 HOLES_SHARE = 0.1
@@ -175,6 +178,7 @@ class Trainer:
         self.model = SplatModel.initial(pts, cols, neighbour_scales(pts), cfg.init_opacity, lrs,
                                         self.device)
         self.model.antialiased = cfg.antialiased
+        self._discs_on_floor(pts)
         self.planes = None
         centres = np.array([c.center for c in cams])
         found = find_planes(pts, centres, np.random.default_rng([self.seed, 11]))
@@ -210,6 +214,18 @@ class Trainer:
         self.holes_filled: dict[str, Any] = {"splats": 0, "freed": 0, "empty_pixels": {}}
         """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
         self._reset_stats()
+
+    @torch.no_grad()
+    def _discs_on_floor(self, pts: np.ndarray) -> None:
+        """The start's splats on the lit floor as discs lying on it
+        (:func:`.lit_floor.floor_discs`)."""
+        on, quat = floor_discs(pts, self.lit_floor, FLOOR_TOLERANCE * self.extent)
+        if not len(on):
+            return
+        index = torch.as_tensor(on, device=self.device)
+        self.model.t["quats"][index] = torch.as_tensor(quat, dtype=torch.float32,
+                                                       device=self.device)
+        self.model.t["log_scales"][index, 2] += float(np.log(FLAT))
 
     def _find_lit_floor(self, cams: list, up: np.ndarray) -> LitFloor | None:
         """The floor the training views' lit patch pins (:mod:`.lit_floor`), where the
