@@ -237,7 +237,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         # one view cannot sweep the plane: where two views moved it under their lights,
         # the plane (a flat ceiling) is there under one view's light too
         at = float(np.median(swept)) if swept else offset
-        framed, seen, which = lit_counts(at, normal, u, v, gu, gv, cameras, lit, front)
+        framed, seen, which = _counts(at, normal, u, v, gu, gv, cameras, lit, front)
         good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
         for region in _single_view_regions(framed, seen, which, good):
             outline = _outline_of(region, gu, gv, cell, at, normal, u, v)
@@ -252,7 +252,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
 
 
 def look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray]:
+            ) -> tuple[np.ndarray, np.ndarray]:
     """Per point (N, 3): whether ``cam`` frames it, and ``mask`` (H, W, at any size)
     there (False where it does not frame it)."""
     x, y, inside = cam.pixels_of(points, mask.shape)
@@ -261,7 +261,7 @@ def look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
     return inside, value
 
 
-def lit_counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
+def _counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
             gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
             front: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per cell of the plane (``normal``, ``offset``), ``(len(gu), len(gv))`` each: how
@@ -286,7 +286,7 @@ def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: 
            front: np.ndarray) -> np.ndarray:
     """(len(gu), len(gv)) cells of the plane (``normal``, ``offset``) lit in the views
     (:data:`MIN_VIEWS`, :data:`LIT_SHARE`)."""
-    framed, seen, _ = lit_counts(offset, normal, u, v, gu, gv, cameras, lit, front)
+    framed, seen, _ = _counts(offset, normal, u, v, gu, gv, cameras, lit, front)
     return (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
 
 
