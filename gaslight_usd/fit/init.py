@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -37,7 +38,9 @@ from ..colour import luminance_weights
 from ..poses import colour_points
 from ..poses.colmap import ColmapModel
 from .light_seeds import LightSeedPoints
-from .lit_floor import LitFloor
+
+if TYPE_CHECKING:  # lit_floor casts its rays with this module's depth_rays
+    from .lit_floor import LitFloor
 
 
 def neighbour_scales(points: np.ndarray) -> np.ndarray:

@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
 from ..flat_outlines import LIT_SHARE, MIN_CELLS, MIN_VIEWS, look_up
+from .init import depth_rays
 from .planes import INLIER_SHARE, OWN_TILT, UP_TILT, Plane, main_axes
 
 SWEEP_SHARE = 1.5
@@ -102,7 +103,7 @@ def _in_plane_axes(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def room_vertical(points: np.ndarray, up: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """The room's vertical: of the main directions of the points' planes
     (:func:`.planes.main_axes`), the one nearest ``up`` (the cameras' mean up, which
-    leans with the way they look: 1.8 deg on ``sun:5``, 9 cm over its floor) where it
+    leans with the way they look: 1.8 deg on ``sun:5``, 3 cm a metre) where it
     is within :data:`.planes.UP_TILT` of it, else ``up``."""
     up = np.asarray(up, np.float64) / np.linalg.norm(up)
     if len(points) < MIN_CELLS:
@@ -125,10 +126,9 @@ def _lit_rays(cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None]
             out.append(np.zeros((0, 3)))
             continue
         y, x = np.nonzero(mask)
-        px = (x + 0.5) * cam.width / mask.shape[1]
-        py = (y + 0.5) * cam.height / mask.shape[0]
-        out.append(np.stack([(px - cam.cx) / cam.fx, (py - cam.cy) / cam.fy,
-                             np.ones(len(px))], -1) @ cam.R)
+        px = np.stack([(x + 0.5) * cam.width / mask.shape[1],
+                       (y + 0.5) * cam.height / mask.shape[0]], axis=1)
+        out.append(depth_rays(cam, px))
     return out
 
 
