@@ -41,6 +41,7 @@ from ..devices import resolve_device
 from ..errors import FitDiverged, InputError
 from ..flat_outlines import Outline, lit_masks, plane_outlines
 from ..light_shapes import drawn_on_outline, outlined_panel, panel_of
+from ..outline_edges import refine_outlines
 from ..poses.agreement import pose_agreement
 from ..progress import Progress
 from ..render import render
@@ -650,14 +651,17 @@ class Trainer:
 
     def _flat_outlines(self) -> list[Outline]:
         """The rectangles the views saw lights in on the room's planes (windows, panels:
-        :mod:`gaslight_usd.flat_outlines`), from every view."""
+        :mod:`gaslight_usd.flat_outlines`), from every view, each side where the views
+        that measured it see the light end (:mod:`gaslight_usd.outline_edges`)."""
         if not self.room_planes:
             return []
-        masks = lit_masks(self.data.images,
-                          [self.data.floor(i) for i in range(len(self.data.images))],
-                          self.y_weights.cpu().numpy())
-        return plane_outlines([(p.normal, p.offset) for p in self.room_planes],
-                              self.data.cameras, masks)
+        floors = [self.data.floor(i) for i in range(len(self.data.images))]
+        weights = self.y_weights.cpu().numpy()
+        masks = lit_masks(self.data.images, floors, weights)
+        outlines = plane_outlines([(p.normal, p.offset) for p in self.room_planes],
+                                  self.data.cameras, masks)
+        # a pixel at a light's edge is part light: the cells run up to a pixel past it
+        return refine_outlines(outlines, self.data.cameras, self.data.images, floors, weights)
 
     def _redraw_flat_lights(self, scene: SplatScene, backdrop: int, outlines: list[Outline],
                             weighed: list[LightPower]) -> tuple[SplatScene, Redrawn]:
