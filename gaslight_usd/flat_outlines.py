@@ -115,6 +115,9 @@ class Outline:
     single_view: bool = False
     """Only one view frames the region (:data:`SINGLE_VIEW_MARGIN`): it lies on the plane
     only if the light the fit drew there does, which one view cannot show."""
+    measured_sides: int = 0
+    """How many of its four sides were put where a view that measured the light sees it
+    end (:mod:`gaslight_usd.outline_edges`); the rest are where the lit cells end."""
 
     @property
     def clean(self) -> bool:
@@ -135,7 +138,8 @@ class Outline:
                 "v": [round(float(x), 5) for x in self.v],
                 "half_size": [round(float(x), 5) for x in self.half_size],
                 "cells": int(self.cells), "fill": round(float(self.fill), 4),
-                "single_view": bool(self.single_view)}
+                "single_view": bool(self.single_view),
+                "measured_sides": int(self.measured_sides)}
 
     @classmethod
     def from_dict(cls, entry: Mapping[str, Any]) -> Outline | None:
@@ -147,11 +151,13 @@ class Outline:
             cells = int(entry.get("cells", 0))
             fill = float(entry.get("fill", 1.0))
             single = bool(entry.get("single_view", False))
+            measured = int(entry.get("measured_sides", 0))
         except (KeyError, TypeError, ValueError):
             return None
         if not all(np.all(np.isfinite(x)) for x in (*vecs, half)) or half.min() <= 0:
             return None
-        return cls(*vecs, half_size=half, cells=cells, fill=fill, single_view=single)
+        return cls(*vecs, half_size=half, cells=cells, fill=fill, single_view=single,
+                   measured_sides=measured)
 
 
 def outlines_from_metadata(metadata: Mapping[str, Any]) -> list[Outline]:

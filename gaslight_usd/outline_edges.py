@@ -166,13 +166,14 @@ def refine_edges(outline: Outline, cameras: Sequence[PinholeCamera],
     past = side_offsets(outline, cameras, lums, clipped)
     if np.isnan(past).all():
         return outline
-    past = np.nan_to_num(past, nan=0.0)
     half = np.asarray(outline.half_size, np.float64)
     # the - side moves in by past[:, 0], the + side by past[:, 1]
-    low, high = -half + past[:, 0], half - past[:, 1]
+    moved = np.nan_to_num(past, nan=0.0)
+    low, high = -half + moved[:, 0], half - moved[:, 1]
     if bool((high - low <= 0).any()):
         return outline
     shift = (low + high) / 2.0
     centre = (np.asarray(outline.centre, np.float64) + shift[0] * np.asarray(outline.u)
               + shift[1] * np.asarray(outline.v))
-    return replace(outline, centre=centre, half_size=(high - low) / 2.0)
+    return replace(outline, centre=centre, half_size=(high - low) / 2.0,
+                   measured_sides=int(np.isfinite(past).sum()))

@@ -59,6 +59,8 @@ def test_the_views_outline_of_a_small_panel_runs_past_it_and_its_sides_come_back
     np.testing.assert_allclose(refined.half_size, PANEL_HALF, atol=0.003)
     np.testing.assert_allclose(refined.centre[[0, 2]], PANEL_CENTRE[[0, 2]], atol=0.003)
     assert refined.cells == found.cells and refined.single_view == found.single_view
+    assert found.measured_sides == 0 and refined.measured_sides == 4
+    assert Outline.from_dict(refined.as_dict()).measured_sides == 4
 
 
 def test_an_outline_too_large_and_off_centre_is_moved_onto_the_panel():
