@@ -15,6 +15,7 @@ from gaslight_usd.fit.planes import (
     find_planes,
     on_a_plane,
     room_box,
+    sparse_axes,
 )
 
 ROOM_LO, ROOM_HI = np.array([-2.5, 0.0, -2.0]), np.array([2.5, 3.0, 2.0])
@@ -55,6 +56,38 @@ def test_finds_a_rooms_six_faces_through_the_smear():
         assert offset == pytest.approx(truth, abs=0.01)
     for plane in planes:  # normals face the cameras
         assert plane.normal @ (np.array([0, 1.4, 0]) @ rot.T) - plane.offset > 0
+
+
+def test_the_fills_lean_does_not_tilt_the_planes_the_sparse_points_square():
+    """The start's fill, leaning 3 degrees about z (its depth errors, the uplifted
+    photos'), outnumbers the triangulated points 5 to 1: planes found in all the points
+    along their own directions lean with it; along the sparse points' directions they are
+    square and where the faces are."""
+    rng = np.random.default_rng(3)
+    sparse = room_points(rng, per_face=80, smear=0.005, junk=0)
+    lean = np.radians(3.0)
+    turn = np.array([[np.cos(lean), -np.sin(lean), 0], [np.sin(lean), np.cos(lean), 0],
+                     [0, 0, 1]])
+    centre = (ROOM_LO + ROOM_HI) / 2
+    fill = (room_points(rng, per_face=400, smear=0.02, junk=100) - centre) @ turn.T + centre
+    points = np.concatenate([sparse, fill])
+    cams = cameras_inside(rng)
+
+    def worst_tilt(planes):
+        return max(np.degrees(np.arccos(np.abs(p.normal).max())) for p in planes)
+
+    leaning, _ = find_planes(points, cams, np.random.default_rng(0))
+    assert worst_tilt(leaning) > 2.0
+    axes = sparse_axes(sparse, np.random.default_rng(0))
+    assert axes is not None and np.allclose(np.abs(axes).max(axis=1), 1.0, atol=1e-3)
+    square, _ = find_planes(points, cams, np.random.default_rng(0), axes)
+    assert len(square) >= 5 and worst_tilt(square) < 0.3
+    for plane in square:
+        axis = int(np.argmax(np.abs(plane.normal)))
+        value = plane.offset / plane.normal[axis]
+        truth = min((ROOM_LO[axis], ROOM_HI[axis]), key=lambda v: abs(v - value))
+        assert value == pytest.approx(truth, abs=0.06)
+    assert sparse_axes(sparse[:20], np.random.default_rng(0)) is None
 
 
 def test_a_slice_through_the_room_is_not_a_plane():

@@ -12,7 +12,9 @@ on it after each step, and pulled flat along it by :meth:`PlanePrior.flatness`.
 Measured by ``gaslight2usd bench --suite chain`` (the probes near the lights).
 
 Which planes: the main directions are the normals of the planes RANSAC finds
-first in the points, squared up as a room's are (:func:`main_axes`); along each,
+first in the points, squared up as a room's are (:func:`main_axes`; for the room's
+box, the views' triangulated points' where they give all three, the planes kept square
+to them: :func:`sparse_axes`, the start's fill carries its depth errors); along each,
 the offsets where the points crowd are planes (:func:`find_planes`), if the
 cameras are all on one side, the points cover a patch both ways and the patch
 hides few points behind it. A room's walls pass; a slice through the room at a
@@ -143,13 +145,17 @@ def _nearer_fit(points: np.ndarray, normal: np.ndarray, offset: float, tau: floa
                 max_tilt: float | None = None) -> tuple[np.ndarray, float]:
     """The plane ``normal . x = offset`` refitted by least squares to the ``points``
     ever nearer it (the fill's smear pulls a single fit off); where ``max_tilt`` is
-    given and the fit leans further off ``normal``, the plane as given."""
+    given and the fit leans further off ``normal``, the plane as given; ``max_tilt`` 0:
+    only the offset is refitted."""
     start = normal
     for share in (1.0, 0.5, 0.25):
         held = points[np.abs(points @ normal - offset) < share * tau]
         if len(held) < 3:
             break
         centre = held.mean(axis=0)
+        if max_tilt == 0:
+            offset = float(normal @ centre)
+            continue
         fitted = np.linalg.eigh(np.cov((held - centre).T))[1][:, 0]
         if max_tilt is not None:
             fitted = fitted if fitted @ start > 0 else -fitted
@@ -219,10 +225,28 @@ OWN_TILT = 0.1
 so the others inherit its error)."""
 
 
-def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generator
-                ) -> tuple[list[Plane], float]:
+def sparse_axes(points: np.ndarray, rng: np.random.Generator) -> np.ndarray | None:
+    """(3, 3) the main directions (:func:`main_axes`) of the views' triangulated
+    ``points`` (N, 3), where they give all three; else None.
+
+    The start's fill points carry its depth errors: from the photos' uplifted views the
+    room's box, found in sparse and fill points together, leaned 1.5-4.7 degrees (walls
+    and ceiling together; from true HDR views 0-1.2) while the sparse points alone give
+    its directions within 0.4 (``docs/measurements.md``, session 53)."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    if len(points) < 30:
+        return None
+    lo, hi = np.percentile(points, 2, axis=0), np.percentile(points, 98, axis=0)
+    axes = main_axes(points, INLIER_SHARE * float(np.linalg.norm(hi - lo)), rng)
+    return axes if len(axes) == 3 else None
+
+
+def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generator,
+                axes: np.ndarray | None = None) -> tuple[list[Plane], float]:
     """The large planes ``points`` lie on (module docstring) and the inlier distance.
-    ``cameras``: (V, 3) the views' centres (a plane has them on one side)."""
+    ``cameras``: (V, 3) the views' centres (a plane has them on one side); ``axes``:
+    the directions to look along (:func:`sparse_axes`), else the points' own
+    (:func:`main_axes`)."""
     points = np.asarray(points, np.float64)
     if len(points) < 30:
         return [], 0.0
@@ -232,7 +256,12 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
     planes: list[Plane] = []
     hiding: list[tuple[Plane, int]] = []  # refused for what they hide, and their axis
     crowds: dict[int, _Crowds] = {}
-    for k, axis in enumerate(main_axes(points, tau, rng)):
+    # the sparse points' directions are the room's: a plane does not lean off them
+    # towards the fill's smear
+    lean = OWN_TILT if axes is None else 0.0
+    if axes is None:
+        axes = main_axes(points, tau, rng)
+    for k, axis in enumerate(axes):
         along = points @ axis
         other = np.eye(3)[int(np.argmin(np.abs(axis)))]  # the world axis least like it
         u = other - (other @ axis) * axis
@@ -241,7 +270,7 @@ def find_planes(points: np.ndarray, cameras: np.ndarray, rng: np.random.Generato
         for peak in _peaks(along, tau / 2):
             near = np.abs(along - peak) < tau / 2
             offset = float(along[near].mean())
-            normal, offset = _nearer_fit(points, axis, offset, tau, OWN_TILT)
+            normal, offset = _nearer_fit(points, axis, offset, tau, lean)
             if any(abs(q.normal @ normal) > 1 - OWN_TILT ** 2 / 2
                    and abs(np.sign(q.normal @ normal) * q.offset - offset) < tau
                    for q in planes):
