@@ -41,12 +41,12 @@ read half a metre out, where other lights may lie)."""
 ACROSS = 41
 """Points read across a side..."""
 ALONG = 13
-"""...at this many places along it, kept :data:`ALONG_SHARE` of its half-length from the
-corners."""
+"""...at this many places along it, within :data:`ALONG_SHARE` of its half-length of its
+middle (clear of the corners)."""
 ALONG_SHARE = 0.6
 INNER = 9
 """The view's inside level: the median over this many x this many points of the
-rectangle's middle (:data:`ALONG_SHARE` of it)."""
+rectangle's middle (within :data:`ALONG_SHARE` of its half-sizes of its centre)."""
 CONTRAST = 4.0
 """A view measured a side where its inside level is over this many times what it reads
 beyond the side: a dim view of the light says nothing sharp about its edge."""
