@@ -4,9 +4,8 @@ The views' outlines of a window or panel (:mod:`gaslight_usd.flat_outlines`) are
 lit in most views that frame them: a cell is lit where its centre falls in a pixel over a
 share of the light's level, and a pixel at the edge is partly light. So an outline runs
 up to a pixel past the light on each side, and a small light's rectangle comes out too
-large: from ``panels:7``'s true HDR views at the ``fast`` size, its 0.40 m ceiling panels
-were outlined 0.42-0.45 m a side, 12-25 % too much area and as much too much light once
-redrawn at the level the views read inside (``docs/measurements.md``, session 53).
+large, with as much too much light once redrawn at the level the views read inside
+(``docs/measurements.md``, session 53).
 
 A view that measured the light (nothing clipped round the edge) says where it ends to a
 fraction of a pixel: across the edge its reading falls from the light's level to the
@@ -28,9 +27,8 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
-from scipy import ndimage
 
-from .cameras import PinholeCamera
+from .cameras import PinholeCamera, bilinear
 from .flat_outlines import Outline
 
 BAND_SHARE = 0.5
@@ -58,12 +56,10 @@ def _read(cam: PinholeCamera, lum: np.ndarray, points: np.ndarray
     covering ``cam``'s frame, read bilinearly at ``points`` (N, 3)."""
     uv, z = cam.project(points)
     h, w = lum.shape
-    x = uv[:, 0] * w / cam.width - 0.5
-    y = uv[:, 1] * h / cam.height - 0.5
-    ok = (z > 0) & np.isfinite(x) & np.isfinite(y) & (x >= 0) & (x <= w - 1) \
-        & (y >= 0) & (y <= h - 1)
-    x, y = np.where(ok, x, 0.0), np.where(ok, y, 0.0)
-    return ndimage.map_coordinates(lum, [y, x], order=1, mode="nearest"), ok
+    x, y = uv[:, 0] * w / cam.width, uv[:, 1] * h / cam.height
+    ok = (z > 0) & np.isfinite(x) & np.isfinite(y) & (x >= 0.5) & (x <= w - 0.5) \
+        & (y >= 0.5) & (y <= h - 0.5)
+    return bilinear(lum[..., None], np.where(ok, x, 0.5), np.where(ok, y, 0.5))[:, 0], ok
 
 
 def _crossing(profile: np.ndarray, offsets: np.ndarray) -> float | None:

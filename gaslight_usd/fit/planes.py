@@ -230,10 +230,9 @@ def sparse_axes(points: np.ndarray, rng: np.random.Generator) -> np.ndarray | No
     ``points`` (N, 3), where they give all three; else None.
 
     The start's fill points carry its depth errors: from the photos' uplifted views the
-    room's box, found in sparse and fill points together, leaned 1.7-1.8 degrees in the
-    median, up to 36 (walls and ceiling together; from true HDR views 0.4, up to 5),
-    while the sparse points alone give its directions within 0.4 (``docs/
-    measurements.md``, session 53)."""
+    room's box, found in sparse and fill points together, leaned with them (walls and
+    ceiling together), while the sparse points alone give its directions
+    (``docs/measurements.md``, session 53)."""
     points = np.asarray(points, np.float64).reshape(-1, 3)
     if len(points) < 30:
         return None

@@ -186,10 +186,11 @@ class Trainer:
         found = find_planes(pts, centres, np.random.default_rng([self.seed, 11]))
         # the box square to the triangulated points' directions: the fill from uplifted
         # photos leans it (the plane prior keeps the fill's own planes: square to those
-        # directions they cost true HDR views' fits up to 19 dB)
-        boxed = find_planes(pts, centres, np.random.default_rng([self.seed, 11]),
-                            sparse_axes(np.asarray(self._init_model().points, np.float64),
-                                        np.random.default_rng([self.seed, 17])))
+        # directions they cost true HDR views' fits; docs/measurements.md, session 53)
+        axes = sparse_axes(np.asarray(self._init_model().points, np.float64),
+                           np.random.default_rng([self.seed, 17]))
+        boxed = found if axes is None else find_planes(
+            pts, centres, np.random.default_rng([self.seed, 11]), axes)
         self.room_planes: list[Plane] = room_box(boxed[0], len(pts))
         """The room's box among the large planes of the initial points, along the sparse
         points' directions (:func:`.planes.room_box`, :func:`.planes.sparse_axes`), with
