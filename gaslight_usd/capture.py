@@ -13,6 +13,13 @@ than the photos' white, so lights hide nothing), and a point is inside when some
 viewpoint sees it no farther than that surface plus a small reach. Splats outside are
 *backdrop*: they may show in panoramas, but they are never lights.
 
+Where the fit found the room's box (its walls, ceiling and floor: the PLY's
+``fit_metrics.room_box``, :func:`gaslight_usd.fit.planes.room_box`), a point inside
+that box is inside the set too, whatever the viewpoint sees: a floater under the
+ceiling, or the least depth of a bin's neighbourhood, otherwise cuts the space short,
+and a ceiling panel's splats on the ceiling were backdrop, never a light
+(:data:`ROOM_SLACK`).
+
 Where bright splats make most of what a direction shows (a window, a lit patch of
 ceiling) there is no dim surface, and the boundary falls through to whatever lies
 behind. The surfaces' *local planes*, fitted around such a hole and carried across it,
@@ -23,11 +30,12 @@ boundaries).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .light_shapes import room_planes
 from .splats import SplatScene
 from .surroundings import Surroundings, bin_cover, planar_fill, scene_view, splat_sigma
 
@@ -56,6 +64,29 @@ a fit's walls scatter 5-15 % in depth; a desk under a window, a corner or a smea
 ceiling is off more (on the chain bench's ``panels`` room, seed 1, a plane through the
 smeared ceiling round a panel put the panel back 0.1-0.35 m above the ceiling; without
 it, 0.0-0.2 m under)."""
+ROOM_SLACK = 0.03
+"""A point this share of the captured space's median depth behind a plane of the room's
+box is still inside the room (the box's ceiling, where the walls stop, can be a few cm
+off the one the panels are set in)."""
+ROOM_SIDES = 5
+"""The room's box counts only where it closes at least this many of the six sides
+round the viewpoint (a floor the photos hardly see may be missing; with fewer, a side
+with no plane would let in whatever the percentile box holds beyond it)."""
+SIDE_COS = 0.9
+"""Two planes close the same side when their inward normals are this close."""
+
+
+def room_half_spaces(metadata: Mapping[str, Any], viewpoint: np.ndarray
+                     ) -> list[tuple[np.ndarray, float]]:
+    """The fit's room box (``fit_metrics.room_box``) as inward ``(normal, offset)`` half
+    spaces ``normal . x >= offset`` holding ``viewpoint``, or none where the box closes
+    fewer than :data:`ROOM_SIDES` sides."""
+    planes = [(n, o) for n, o in room_planes(metadata) if float(n @ viewpoint) > o]
+    sides: list[np.ndarray] = []
+    for normal, _ in planes:
+        if all(float(normal @ side) < SIDE_COS for side in sides):
+            sides.append(normal)
+    return planes if len(sides) >= ROOM_SIDES else []
 
 
 def camera_centres(metadata: Mapping[str, Any]) -> np.ndarray | None:
@@ -93,9 +124,13 @@ class CaptureSpace:
     """Per view, (B,) the distance to the local plane of the surfaces carried across the
     bins where bright splats leave a hole in them (:func:`_planes`; ``inf`` elsewhere):
     None unless asked for."""
+    room: list[tuple[np.ndarray, float]] = field(default_factory=list)
+    """The room box's inward half spaces (:func:`room_half_spaces`); empty: no box."""
+    room_slack: float = 0.0
+    """How far behind the room's planes a point is still inside (m)."""
 
     def inside(self, points: np.ndarray, reach: np.ndarray | float = 0.0,
-               boundary: str = "open") -> np.ndarray:
+               boundary: str = "open", room: bool = True) -> np.ndarray:
         """(N,) True where some viewpoint sees ``points`` no farther than its boundary.
 
         ``reach`` (scalar or (N,)) lets a point lie that much beyond the boundary
@@ -118,6 +153,11 @@ class CaptureSpace:
             b, r = view.bin_of(points)
             limit = depth[b] * (1.0 + DEPTH_SLACK) + reach
             seen |= r <= limit
+        if room and self.room:
+            normals = np.array([n for n, _ in self.room])
+            offsets = np.array([o for _, o in self.room])
+            margin = points @ normals.T - offsets[None] + (reach + self.room_slack)[:, None]
+            seen |= np.all(margin >= 0.0, axis=1)
         return seen & in_box
 
     def median_depth(self) -> float:
@@ -168,7 +208,12 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None,
         box = np.stack([box[0] - pad, box[1] + pad])
     else:
         box = np.array([[-np.inf] * 3, [np.inf] * 3])
-    return CaptureSpace(viewpoints, views, box, source, local)
+    space = CaptureSpace(viewpoints, views, box, source, local)
+    space.room = room_half_spaces(scene.metadata, viewpoints.mean(axis=0))
+    if space.room:
+        space.room_slack = ROOM_SLACK * space.median_depth()
+        space.source += f", inside the fit's room box ({len(space.room)} planes)"
+    return space
 
 
 def _planes(scene: SplatScene, view: Surroundings, bright: np.ndarray) -> np.ndarray:
@@ -191,7 +236,8 @@ def _planes(scene: SplatScene, view: Surroundings, bright: np.ndarray) -> np.nda
                                        PLANE_SPREAD), np.inf)
 
 
-def backdrop_mask(scene: SplatScene, space: CaptureSpace) -> np.ndarray:
-    """(N,) splats outside the captured space, or the fit's own unseen-surface backdrop."""
-    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene))
+def backdrop_mask(scene: SplatScene, space: CaptureSpace, room: bool = True) -> np.ndarray:
+    """(N,) splats outside the captured space (``room``: the room's box counts,
+    :meth:`CaptureSpace.inside`), or the fit's own unseen-surface backdrop."""
+    outside = ~space.inside(scene.positions, reach=2.0 * splat_sigma(scene), room=room)
     return outside | fit_backdrop_mask(scene)

@@ -261,6 +261,13 @@ class LightSearch:
     its splats are not moved there: which part is right the photos do not say; the
     chain bench's `bulb` window fitted as a sheet 1 m in front of its wall lost every
     emitter near the window that way); None when no light was found."""
+    unseen: np.ndarray | None = None
+    """(N,) bool: ``backdrop`` and the splats in the room's box that the captured space's
+    viewpoint does not see (:meth:`gaslight_usd.capture.CaptureSpace.inside` without
+    the room): no surface a clipped light is weighed by
+    (:func:`gaslight_usd.fit.power.lights_to_weigh`; with them a bare bulb's weighing
+    came out 1-2 stops short, ``docs/measurements.md``, session 54); ``None``: as
+    ``backdrop``."""
 
     def summary(self) -> dict[str, Any]:
         return {
@@ -616,13 +623,15 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     opacity = scene.opacities.astype(np.float64)
     area = 2.0 * np.pi * sigma**2 * opacity  # integrated alpha: the projected area
     backdrop = backdrop_mask(scene, space)
+    unseen = backdrop_mask(scene, space, room=False) if space.room else backdrop
     candidates = np.flatnonzero((radiance > white) & ~backdrop)
     counts = {"splats": scene.count, "backdrop": int(backdrop.sum()),
               "candidates": int(len(candidates))}
     emitters = np.zeros(scene.count, bool)
     if len(candidates) == 0:
         return LightSearch([], emitters, backdrop, space, white, source,
-                           {**counts, "clusters": 0, "clusters_tested": 0, "emitters": 0})
+                           {**counts, "clusters": 0, "clusters_tested": 0, "emitters": 0},
+                           unseen=unseen)
     labels = _components(scene.positions[candidates].astype(np.float64),
                          LINK_SIGMAS * sigma[candidates])
     n_clusters = int(labels.max()) + 1
@@ -680,7 +689,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     counts.update(clusters=n_clusters, clusters_tested=int(len(order)))
     if not emitting:
         return LightSearch([], emitters, backdrop, space, white, source,
-                           {**counts, "emitters": 0})
+                           {**counts, "emitters": 0}, unseen=unseen)
     # Sunk clusters onto the surface they are seen through; then group into lights the
     # clusters within each other's reach or overlapping along the viewing rays, each
     # group at its nearest member's distance from the viewpoint.
@@ -696,7 +705,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     emitting, tests = [emitting[k] for k in keep], [retest.get(k) or tests[k] for k in keep]
     if not emitting:
         return LightSearch([], emitters, backdrop, space, white, source,
-                           {**counts, "emitters": 0})
+                           {**counts, "emitters": 0}, unseen=unseen)
     cluster_power = np.array([(radiance[i] * area[i]).sum() for i in emitting])
     groups, seen_at = group_clusters(placed, emitting, sigma, cluster_power, viewpoint,
                                      GROUP_SHARE * space.median_depth() / 2.0, outlined)
@@ -742,7 +751,7 @@ def search_lights(scene: SplatScene, space: CaptureSpace | None = None,
     evidence[em], moved = onto_surfaces_each(evidence, em, viewpoint, walls)
     counts["sunk_splats_moved"] = int(moved.sum())
     return LightSearch(lights, emitters, backdrop, space, white, source, counts,
-                       evidence.astype(np.float32))
+                       evidence.astype(np.float32), unseen)
 
 
 def find_lights(scene: SplatScene, space: CaptureSpace | None = None) -> list[Light]:

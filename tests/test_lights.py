@@ -18,7 +18,7 @@ import pytest
 
 from gaslight_usd import lights
 from gaslight_usd.bench.suite_chain import TRUTH_HDR_METHOD
-from gaslight_usd.capture import capture_space
+from gaslight_usd.capture import capture_space, room_half_spaces
 from gaslight_usd.lights import find_lights, power_source, search_lights
 from gaslight_usd.probe import clearance, default_probe
 from gaslight_usd.splats import SplatScene
@@ -564,3 +564,57 @@ def test_a_clipped_bulb_the_photos_outlined_is_a_light_however_faint_its_fill(vi
     assert np.linalg.norm(lamp_light.position - LAMP) < 0.05
     assert float(lamp_light.power.max()) < 1e-3 * max(float(li.power.max())
                                                       for li in found.lights)
+
+
+ROOM_BOX = [{"normal": n, "offset": o} for n, o in (
+    ([0.0, 1.0, 0.0], 0.0), ([0.0, -1.0, 0.0], -3.0), ([-1.0, 0.0, 0.0], -2.5),
+    ([1.0, 0.0, 0.0], -2.5), ([0.0, 0.0, -1.0], -2.0), ([0.0, 0.0, 1.0], -2.0))]
+HIDDEN_PANEL = np.array([1.2, 2.99, -1.0])
+
+
+def panel_behind_a_floater(room_box: list[dict] | None) -> SplatScene:
+    """``room_scene`` plus a clipped ceiling panel (0.4 m, radiance 300) that a few dim,
+    opaque floaters 1 m under the ceiling hide from the cameras' median point, as a fit
+    leaves them: seen from there, the room ends at the floaters in the panel's direction."""
+    scene, _ = room_scene()
+    rng = np.random.default_rng(3)
+    panel = HIDDEN_PANEL + np.column_stack([rng.uniform(-0.2, 0.2, 40), np.zeros(40),
+                                     rng.uniform(-0.2, 0.2, 40)])
+    eye = np.median(np.asarray(scene.metadata["cameras"]["centres"]), axis=0)
+    floaters = eye + (HIDDEN_PANEL - eye) * 0.6 + rng.normal(0, 0.03, (6, 3))
+    meta = dict(scene.metadata)
+    meta["fit_metrics"] = {**meta["fit_metrics"], **({"room_box": room_box} if room_box else {})}
+    n = scene.count - 15  # the fit's backdrop tiles stay its last splats
+    order = np.r_[np.arange(n), np.arange(scene.count, scene.count + 46), np.arange(n, scene.count)]
+    return SplatScene.from_activated(
+        np.concatenate([scene.positions, panel, floaters])[order],
+        np.concatenate([scene.base_colours, np.full((40, 3), 300.0), np.full((6, 3), 0.3)])[order],
+        np.concatenate([scene.scales, np.full((40, 3), 0.04), np.full((6, 3), 0.08)])[order],
+        np.concatenate([scene.opacities, np.full(46, 0.9)])[order], metadata=meta)
+
+
+def test_a_panel_a_floater_hides_from_the_viewpoint_is_inside_the_rooms_box():
+    lights_at = [light.position for light in search_lights(panel_behind_a_floater(None)).lights]
+    # seen from the cameras' median point alone, the room ends at the floaters
+    assert all(np.linalg.norm(p - HIDDEN_PANEL) > 0.3 for p in lights_at)
+    scene = panel_behind_a_floater(ROOM_BOX)
+    found = search_lights(scene)
+    near = [light for light in found.lights if np.linalg.norm(light.position - HIDDEN_PANEL) < 0.1]
+    assert len(near) == 1 and near[0].radius < 0.3
+    # the box holds the room, not the bright smear a fit left behind the window's wall
+    assert not outside_room(scene.positions[found.emitters]).any()
+    assert "room box (6 planes)" in found.space.source
+    # ...but the surfaces a clipped light is weighed by stay those the viewpoint sees
+    panel = np.linalg.norm(scene.positions - HIDDEN_PANEL, axis=1) < 0.3
+    panel &= scene.base_colours.max(axis=1) > 100
+    assert panel.sum() == 40 and found.unseen[panel].all() and not found.backdrop[panel].any()
+
+
+def test_a_box_open_on_two_sides_is_no_room():
+    eye = np.array([0.0, 1.5, 0.0])
+    assert len(room_half_spaces({"fit_metrics": {"room_box": ROOM_BOX}}, eye)) == 6
+    assert len(room_half_spaces({"fit_metrics": {"room_box": ROOM_BOX[:5]}}, eye)) == 5
+    assert room_half_spaces({"fit_metrics": {"room_box": ROOM_BOX[:4]}}, eye) == []
+    # two planes closing one side count as one side
+    twice = ROOM_BOX[:4] + [{"normal": [0.9987, 0.05, 0.0], "offset": -2.4}]
+    assert room_half_spaces({"fit_metrics": {"room_box": twice}}, eye) == []

@@ -547,7 +547,10 @@ def lights_to_weigh(scene: SplatScene, cameras: list[PinholeCamera], images: lis
             keep.append(entry)
         else:
             weigh.append(entry)
-    opaque = ~search.backdrop & (scene.opacities > 0.5)
+    # the surfaces the captured space's viewpoint sees, not all of the room's box
+    # (LightSearch.unseen)
+    unseen = search.backdrop if search.unseen is None else search.unseen
+    opaque = ~unseen & (scene.opacities > 0.5)
     # bright surfaces too: the photos clipped the ones a lamp lights most, and they count
     # as bounds (:func:`albedo_scores`); leaving them out biases the factor low
     surfaces = opaque & ~search.emitters

@@ -658,6 +658,11 @@ class Trainer:
                             self.y_weights.cpu().numpy(),
                             self._measured_views(range(len(self.data.images)))).as_dict()
 
+    def _room_box(self) -> list[dict[str, Any]]:
+        """The room's box as the fit's metrics write it (the captured space reads it:
+        :func:`gaslight_usd.capture.room_half_spaces`)."""
+        return [plane.as_dict() for plane in self.room_planes]
+
     def _flat_outlines(self) -> list[Outline]:
         """The rectangles the views saw lights in on the room's planes (windows, panels:
         :mod:`gaslight_usd.flat_outlines`), from every view, each side where the views
@@ -687,7 +692,8 @@ class Trainer:
         probe.metadata["exposure_scale"] = float(
             self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
         probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop, "clipped_lights":
-                                         [light.as_dict() for light in weighed]}
+                                         [light.as_dict() for light in weighed],
+                                         "room_box": self._room_box()}
         method = self.data.attributes.get("gaslight:method")
         if not method and all(self.data.floor(i) is None for i in range(len(self.data.images))):
             method = "measured"  # HDR views that clipped nothing: their lights were measured
@@ -894,7 +900,8 @@ class Trainer:
         # as the export's lights finder will see it: the views' white, the fit's backdrop
         probe.metadata["exposure_scale"] = float(
             self.data.attributes.get("gaslight:exposure_scale", 1.0) or 1.0)
-        probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop}
+        probe.metadata["fit_metrics"] = {"backdrop_splats": backdrop,
+                                         "room_box": self._room_box()}
         weigh, keep, surfaces, opaque = lights_to_weigh(probe, views, images, floors, weights)
         if weigh:
             self.progress.message(f"weighing {len(weigh)} clipped light(s) by the surfaces "
@@ -971,7 +978,7 @@ class Trainer:
             "oversized_cut": oversized,
             "init": self.init_method,
             "planes": self.planes.as_dict() if self.planes is not None else None,
-            "room_box": [plane.as_dict() for plane in self.room_planes],
+            "room_box": self._room_box(),
             "lit_floor": self.lit_floor_info,
             "fit_seconds": round(seconds, 2),
             "init_seconds": round(init_seconds, 2),
