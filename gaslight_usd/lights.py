@@ -265,9 +265,9 @@ class LightSearch:
     """(N,) bool: ``backdrop`` and the splats in the room's box that the captured space's
     viewpoint does not see (:meth:`gaslight_usd.capture.CaptureSpace.inside` without
     the room): no surface a clipped light is weighed by
-    (:func:`gaslight_usd.fit.power.lights_to_weigh`; with them a bare bulb's weighing
-    came out 1-2 stops short, ``docs/measurements.md``, session 54); ``None``: as
-    ``backdrop``."""
+    (:func:`gaslight_usd.fit.power.lights_to_weigh`; with them every weighing came out
+    0.6-5 stops lower, the bare bulbs short, ``docs/measurements.md``, session 54);
+    ``None``: as ``backdrop``."""
 
     def summary(self) -> dict[str, Any]:
         return {

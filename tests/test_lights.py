@@ -574,12 +574,12 @@ HIDDEN_PANEL = np.array([1.2, 2.99, -1.0])
 
 def panel_behind_a_floater(room_box: list[dict] | None) -> SplatScene:
     """``room_scene`` plus a clipped ceiling panel (0.4 m, radiance 300) that a few dim,
-    opaque floaters 1 m under the ceiling hide from the cameras' median point, as a fit
+    opaque floaters 0.6 m under the ceiling hide from the cameras' median point, as a fit
     leaves them: seen from there, the room ends at the floaters in the panel's direction."""
     scene, _ = room_scene()
     rng = np.random.default_rng(3)
     panel = HIDDEN_PANEL + np.column_stack([rng.uniform(-0.2, 0.2, 40), np.zeros(40),
-                                     rng.uniform(-0.2, 0.2, 40)])
+                                            rng.uniform(-0.2, 0.2, 40)])
     eye = np.median(np.asarray(scene.metadata["cameras"]["centres"]), axis=0)
     floaters = eye + (HIDDEN_PANEL - eye) * 0.6 + rng.normal(0, 0.03, (6, 3))
     meta = dict(scene.metadata)
