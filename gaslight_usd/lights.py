@@ -266,8 +266,8 @@ class LightSearch:
     viewpoint does not see (:meth:`gaslight_usd.capture.CaptureSpace.inside` without
     the room): no surface a clipped light is weighed by
     (:func:`gaslight_usd.fit.power.lights_to_weigh`; with them every weighing came out
-    0.6-5 stops lower, the bare bulbs short, ``docs/measurements.md``, session 54);
-    ``None``: as ``backdrop``."""
+    lower and the bare bulbs short: ``gaslight2usd bench --suite chain``,
+    ``docs/measurements.md``); ``None``: as ``backdrop``."""
 
     def summary(self) -> dict[str, Any]:
         return {
