@@ -7,7 +7,12 @@ import numpy as np
 import pytest
 from test_lights import LAMP, room_scene
 
-from gaslight_usd.bench.suite_chain import emitter_distance, light_placement, weighing_summary
+from gaslight_usd.bench.suite_chain import (
+    emitter_distance,
+    light_placement,
+    summaries,
+    weighing_summary,
+)
 
 WINDOW_LIGHT = {"name": "window", "kind": "rectangle", "center": [2.5, 1.6, 0.2],
                 "corners": [[2.5, 1.05, -0.5], [2.5, 1.05, 0.9], [2.5, 2.15, 0.9],
@@ -78,8 +83,47 @@ def test_the_weighing_summary_names_each_emitters_clipped_light_and_false_ones()
     assert row["weighing_lamp"] == "inferred +6.50 (1.2) lit-surface albedo 12.50"
     assert row["weighing_window"] == "predicted +0.00 (3.0) lit-surface albedo 0.60"
     assert row["false_lights_weighed"] == 1
-    assert weighing_summary([], [LAMP_LIGHT]) == {"weighing_lamp": "",
-                                                  "false_lights_weighed": 0}
+    assert (row["power_source_lamp"], row["claimed_stops_lamp"]) == ("inferred", 1.2)
+    assert (row["power_source_window"], row["claimed_stops_window"]) == ("predicted", 3.0)
+    empty = weighing_summary([], [LAMP_LIGHT])
+    assert (empty["weighing_lamp"], empty["power_source_lamp"]) == ("", "")
+    assert np.isnan(empty["claimed_stops_lamp"]) and empty["false_lights_weighed"] == 0
+
+
+def _row(method, scene, probe, psnr, lamp_err, window_err, lamp_source="inferred",
+         lamp_claim=1.0):
+    """A chain row as :func:`run` makes it (the columns :func:`summaries` reads)."""
+    return {"method": method, "setting": "fast", "scene": scene, "probe": probe,
+            "irradiance_psnr": psnr, "power_err_lamp": lamp_err, "power_err_window": window_err,
+            "power_err_sun_patch": -3.0, "weighing_lamp": "x", "weighing_window": "x",
+            "power_source_lamp": lamp_source, "claimed_stops_lamp": lamp_claim,
+            "power_source_window": "predicted", "claimed_stops_window": 3.0}
+
+
+def test_the_chain_summary_scores_the_goals_and_the_claimed_uncertainty():
+    """Two scenes of two probes: the photos' fit within 3 dB of the true HDR fit's at
+    three probes of four; lights within half a stop at 4 of 8 pairs (the sunlit patch,
+    a lit surface, not counted); the lamp's claimed stop covers two of its four errors."""
+    truth = [_row("truth HDR", s, k, 30.0, 0.0, 0.0, "measured", float("nan"))
+             for s in ("a", "b") for k in (0, 1)]
+    photos = [_row("recursive", "a", 0, 28.0, 0.2, -0.4),
+              _row("recursive", "a", 1, 26.5, -1.5, 0.3),
+              _row("recursive", "b", 0, 29.0, 0.9, 2.0, lamp_claim=2.0),
+              _row("recursive", "b", 1, 31.0, 3.0, 0.1, lamp_claim=2.0)]
+    by_method = {s["method"]: s for s in summaries(truth + photos)}
+    got = by_method["recursive"]
+    assert got["probes"] == 4 and got["irradiance_psnr_median"] == pytest.approx(28.5)
+    assert got["within_3db_of_truth"] == pytest.approx(0.75)
+    assert got["light_probe_pairs"] == 8
+    assert got["lights_within_half_stop"] == pytest.approx(4 / 8)
+    assert got["weighed_pairs"] == 4
+    assert got["weighed_within_claim"] == pytest.approx(0.5)  # 0.2 <= 1, 0.9 <= 2
+    z = np.sqrt(np.mean(np.square([0.2, 1.5, 0.45, 1.5])))
+    assert got["weighed_z_rms"] == pytest.approx(z, abs=0.01)
+    assert got["predicted_pairs"] == 4 and got["predicted_within_claim"] == pytest.approx(1.0)
+    ceiling = by_method["truth HDR"]
+    assert np.isnan(ceiling["within_3db_of_truth"]) and ceiling["weighed_pairs"] == 0
+    assert ceiling["lights_within_half_stop"] == 1.0
 
 
 def test_the_rigs_rectangle_is_scored_against_the_true_window():

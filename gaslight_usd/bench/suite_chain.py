@@ -76,7 +76,10 @@ the scene's camera constant K gives radiance; the bench knows K, a user would no
   clipped it (:mod:`.uplift_fill`; methods that uplift photos only).
 
 Rows are one per (scene, method, probe); the chart puts each method's median
-irradiance PSNR against its chain seconds (uplift + fit).
+irradiance PSNR against its chain seconds (uplift + fit). The summary (:func:`summaries`)
+scores each method against issue 16's goals over the whole run (probes within 3 dB of
+the true HDR fit's, light-probe pairs within half a stop) and holds each weighed light's
+claimed uncertainty against its errors.
 """
 
 from __future__ import annotations
@@ -420,10 +423,16 @@ def weighing_summary(clipped: list[dict[str, Any]], lights: list[dict[str, Any]]
       :data:`NEAR_EMITTER_M`): its power's source and factor over the fill, ``inferred
       +10.75 (1.2)`` (log2, its uncertainty in stops), or why it was not weighed; empty
       where no clipped light is near it;
+    * ``power_source_<name>``, ``claimed_stops_<name>`` -- that light's power source and
+      the uncertainty the output claims for it (stops; empty and NaN where none is near),
+      which :func:`summaries` holds against the errors at the probes;
     * ``false_lights_weighed`` -- clipped lights farther than that from every true
       emitter whose power was raised (a lit surface or a floater taken for a lamp).
     """
-    row: dict[str, Any] = {f"weighing_{li['name']}": "" for li in lights}
+    row: dict[str, Any] = {}
+    for li in lights:
+        row |= {f"weighing_{li['name']}": "", f"power_source_{li['name']}": "",
+                f"claimed_stops_{li['name']}": float("nan")}
     if not clipped or not lights:
         return row | {"false_lights_weighed": 0}
     pos = np.array([c["position"] for c in clipped], np.float64)
@@ -438,6 +447,8 @@ def weighing_summary(clipped: list[dict[str, Any]], lights: list[dict[str, Any]]
         if c.get("lit_surface_albedo") is not None:
             text += f" lit-surface albedo {c['lit_surface_albedo']:.2f}"
         row[f"weighing_{li['name']}"] = text
+        row[f"power_source_{li['name']}"] = c["power_source"]
+        row[f"claimed_stops_{li['name']}"] = float(c["power_uncertainty_stops"])
     false = dists.min(axis=0) > NEAR_EMITTER_M
     row["false_lights_weighed"] = int(sum(1 for c, f in zip(clipped, false, strict=True)
                                           if f and c["factor"] > 1.0))
@@ -681,3 +692,85 @@ def run(options: dict[str, Any]) -> list[dict[str, Any]]:
                                  "scene": scene_name, "seconds": round(seconds, 2),
                                  "splats": metrics["splats"], **row, **placement})
     return rows
+
+
+# -- the goals, per method ------------------------------------------------------------------
+
+GOAL_DB = 3.0
+"""Issue 16's goal: irradiance PSNR within this of the fit from the true HDR views."""
+GOAL_STOPS = 0.5
+"""...and every light's power within this many stops, at every probe."""
+WEIGHED_SOURCES = ("inferred", "fused")
+"""Power sources whose uncertainty the surfaces' weighing claims
+(:mod:`gaslight_usd.fit.power`)."""
+
+
+def _share(flags: list[bool]) -> float:
+    return round(float(np.mean(flags)), 3) if flags else float("nan")
+
+
+def summaries(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (method, preset), over every scene and probe of the run, the goals and how
+    honest the output's uncertainties are:
+
+    * ``irradiance_psnr_mean`` / ``_median``; ``within_3db_of_truth`` -- the share of
+      probes within :data:`GOAL_DB` of the ``truth HDR`` fit's on the same scene, probe
+      and preset (NaN without that method in the run);
+    * ``light_probe_pairs``, ``lights_median_abs_stops``, ``lights_within_half_stop`` --
+      every true light's ``power_err`` at every probe (lit surfaces such as a sunlit
+      floor are not lights: left out);
+    * ``weighed_pairs``, ``weighed_within_claim``, ``weighed_z_rms`` -- the pairs whose
+      light's power the surfaces weighed (:data:`WEIGHED_SOURCES`): the share whose error
+      is within the uncertainty the output claims for that light (about 68 % if the claim
+      is one honest sigma), and the root mean square of error / claim (about 1);
+    * ``predicted_pairs``, ``predicted_within_claim`` -- the same for lights left at the
+      uplift's fill (``predicted``, claimed :data:`gaslight_usd.fit.power.PREDICTOR_SIGMA_STOPS`).
+    """
+    truth = {(r["scene"], r["setting"], r["probe"]): float(r["irradiance_psnr"])
+             for r in rows if r.get("method") == "truth HDR"}
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for row in rows:
+        groups.setdefault((str(row.get("method")), str(row.get("setting"))), []).append(row)
+    out = []
+    for (method, setting), members in groups.items():
+        psnr = [float(r["irradiance_psnr"]) for r in members]
+        errors: list[float] = []
+        claims: dict[str, list[tuple[float, float]]] = {"weighed": [], "predicted": []}
+        for r in members:
+            for key in r:
+                if not key.startswith("weighing_"):
+                    continue
+                name = key[len("weighing_"):]
+                err = float(r.get(f"power_err_{name}", math.nan))
+                if not math.isfinite(err):
+                    continue
+                errors.append(err)
+                source = r.get(f"power_source_{name}", "")
+                claim = float(r.get(f"claimed_stops_{name}", math.nan))
+                kind = ("weighed" if source in WEIGHED_SOURCES
+                        else "predicted" if source == "predicted" else None)
+                if kind and math.isfinite(claim) and claim > 0:
+                    claims[kind].append((err, claim))
+        paired = [(p, truth[(r["scene"], r["setting"], r["probe"])])
+                  for p, r in zip(psnr, members, strict=True)
+                  if (r["scene"], r["setting"], r["probe"]) in truth]
+        weighed = claims["weighed"]
+        entry: dict[str, Any] = {
+            "method": method, "preset": setting, "probes": len(members),
+            "irradiance_psnr_mean": round(float(np.mean(psnr)), 2),
+            "irradiance_psnr_median": round(float(np.median(psnr)), 2),
+            "within_3db_of_truth": (_share([p >= t - GOAL_DB for p, t in paired])
+                                    if method != "truth HDR" else float("nan")),
+            "light_probe_pairs": len(errors),
+            "lights_median_abs_stops": (round(float(np.median(np.abs(errors))), 2)
+                                        if errors else float("nan")),
+            "lights_within_half_stop": _share([abs(e) <= GOAL_STOPS for e in errors]),
+            "weighed_pairs": len(weighed),
+            "weighed_within_claim": _share([abs(e) <= c for e, c in weighed]),
+            "weighed_z_rms": (round(float(np.sqrt(np.mean([(e / c) ** 2 for e, c in weighed]))),
+                                    2) if weighed else float("nan")),
+            "predicted_pairs": len(claims["predicted"]),
+            "predicted_within_claim": _share([abs(e) <= c for e, c in claims["predicted"]]),
+        }
+        out.append(entry)
+    return out
