@@ -95,3 +95,50 @@ def test_a_light_fewer_than_two_views_frame_whole_keeps_its_power():
     one = _cameras()[:1]  # it dims in this view too, but one window is one sample
     seen = [render(scene, cam).image.numpy() for cam in one]
     assert fine_power_factor(scene, rows, BULB, 0.02, one, seen, Y709) == (1.0, 0)
+
+
+def test_a_floater_in_front_of_a_bulb_no_longer_brightens_it(monkeypatch):
+    """A dim floater 1.2 m in front of a lone bulb, across the views' rays to it (the
+    views saw no floater): matched through it, the bulb was brightened by what the
+    floater hid, and a probe off those rays would see it that much too bright. Drawn
+    without what lies in front of it, the fit's bulb is brought back to what its views
+    measured; through the floater (nothing cleared) it would be left as it is."""
+    from gaslight_usd.fit import fine_power
+    from gaslight_usd.fit.backdrop import concatenate
+
+    scene, rows = _wall_and_bulb(1)
+    cams = _cameras()
+    views = [area_resize(render(scene, scale_camera_to(cam, SIZE * 4, SIZE * 4)).image.numpy(),
+                         SIZE, SIZE) for cam in cams]
+    floater = SplatScene.from_activated(np.array([[0.0, 1.05, -1.2]]), np.full((1, 3), 0.3),
+                                        np.full((1, 3), 0.3), np.array([0.3]),
+                                        metadata={"antialiased": True})
+    fogged = concatenate(scene, floater)
+    monkeypatch.setattr(fine_power, "FRONT_CLEAR_SIZES", 1e6)  # clear nothing
+    hidden, used = fine_power_factor(fogged, rows, BULB, 0.02, cams, views, Y709,
+                                     tolerance=0.0)
+    assert used == len(cams) and np.log2(hidden) > 0.15  # the floater hides some of it
+    fitted = with_fine_power(fogged, [FinePower(BULB, rows, hidden, used)])
+    through, _ = fine_power_factor(fitted, rows, BULB, 0.02, cams, views, Y709, tolerance=0.0)
+    assert abs(np.log2(through)) < 0.03
+    monkeypatch.undo()
+    back, used = fine_power_factor(fitted, rows, BULB, 0.02, cams, views, Y709, tolerance=0.0)
+    assert used == len(cams)
+    np.testing.assert_allclose(np.log2(back), -np.log2(hidden), atol=0.05)
+    # the wall behind, farther than the light, is never cleared; the floater is, and the
+    # fit leaves it out with the factor (kept, it would hide the matched bulb)
+    front = fine_power.in_front(fogged, cams[0].center, BULB, 0.02, 0.04)
+    assert front[-1] and not front[: rows[0]].any()
+    _, _, cleared = fine_power.matched_light(fitted, rows, BULB, 0.02, cams, views, Y709)
+    assert cleared.tolist() == [fitted.count - 1]
+    # splats the caller keeps (a wall the light is flush with) are matched through
+    kept, _, none = fine_power.matched_light(fitted, rows, BULB, 0.02, cams, views, Y709,
+                                             tolerance=0.0, keep=np.ones(fitted.count, bool))
+    assert len(none) == 0 and abs(np.log2(kept)) < 0.03
+    light = FinePower(BULB, rows, back, used, cleared)
+    assert light.as_dict()["floaters_cleared"] == 1
+    clean = with_fine_power(fitted, [light])
+    assert clean.count == fitted.count - 1
+    np.testing.assert_allclose(np.median([_window_light(clean, cam, 4) for cam in cams]),
+                               np.median([_window_light(scene, cam, 4) for cam in cams]),
+                               rtol=0.05)

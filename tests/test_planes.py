@@ -305,6 +305,21 @@ def test_a_light_flush_with_a_planes_patch_is_on_it_and_a_bulb_before_a_wall_is_
     assert not on_a_plane(np.array([0.0, 3.0, 0.0]), 0.1, [])
 
 
+def test_splats_whose_reach_touches_a_planes_patch_are_on_it():
+    """A ceiling splat, one 0.1 m under it that reaches it (3 sigma 0.15 m), one as far
+    that does not, and one in the ceiling's plane past the patch's edge."""
+    from gaslight_usd.fit.planes import on_planes
+    from gaslight_usd.splats import SplatScene
+
+    ceiling = Plane(np.array([0.0, -1.0, 0.0]), -3.0, np.array([-2.5, -2.0]),
+                    np.array([2.5, 2.0]), np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), 500)
+    pos = np.array([[0.0, 3.0, 0.0], [1.0, 2.9, 0.5], [1.0, 2.9, 0.5], [4.0, 3.0, 0.0]])
+    scales = np.array([[0.02] * 3, [0.05] * 3, [0.02] * 3, [0.02] * 3])
+    scene = SplatScene.from_activated(pos, np.full((4, 3), 0.5), scales, np.full(4, 0.9))
+    assert on_planes(scene, [ceiling]).tolist() == [True, True, False, False]
+    assert not on_planes(scene, []).any()
+
+
 @pytest.mark.parametrize("normals", [[[0.67, -0.2, 0.71]], [[1, 0, 0], [0, 1, 0]],
                                      [[1, 0, 0], [1, 0, 0.05]]])
 def test_no_two_facing_walls_no_room_box(normals):

@@ -45,6 +45,7 @@ import torch
 from scipy.spatial import cKDTree
 
 from ..render.project import quat_to_rotmat
+from ..splats import SplatScene
 
 INLIER_SHARE = 0.01
 """Inlier distance: this share of the initial points' extent (0.07 m in a 5 x 4 x 3 m
@@ -139,6 +140,19 @@ def on_a_plane(point: np.ndarray, reach: float, planes: list[Plane]) -> bool:
                 np.all((uv >= plane.lo - reach) & (uv <= plane.hi + reach))):
             return True
     return False
+
+
+def on_planes(scene: SplatScene, planes: list[Plane]) -> np.ndarray:
+    """(N,) splats whose 3-sigma reach touches one of ``planes``' patches."""
+    points = scene.positions.astype(np.float64)
+    reach = 3.0 * scene.scales.max(axis=1)
+    out = np.zeros(len(points), bool)
+    for plane in planes:
+        uv = points @ plane.axes.T
+        out |= ((np.abs(points @ plane.normal - plane.offset) <= reach)
+                & np.all((uv >= plane.lo - reach[:, None]) & (uv <= plane.hi + reach[:, None]),
+                         axis=1))
+    return out
 
 
 def _nearer_fit(points: np.ndarray, normal: np.ndarray, offset: float, tau: float,

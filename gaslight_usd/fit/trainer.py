@@ -52,7 +52,7 @@ from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
 from .exposure_check import exposure_outliers
-from .fine_power import FinePower, fine_power_factor, with_fine_power
+from .fine_power import FinePower, matched_light, with_fine_power
 from .flat_redraw import Redrawn, redraw_flat_lights
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .holes import fill_holes
@@ -77,6 +77,7 @@ from .planes import (
     far_walls,
     find_planes,
     on_a_plane,
+    on_planes,
     room_box,
     sparse_axes,
 )
@@ -750,7 +751,8 @@ class Trainer:
 
     def _fine_power(self, scene: SplatScene) -> tuple[SplatScene, list[FinePower]]:
         """The lights the views measured (no view clipped), brightened to keep drawn fine
-        the power they showed their views at the fitting size (:mod:`.fine_power`)."""
+        the power they showed their views at the fitting size, and the floaters that hid
+        them from their views left out (:mod:`.fine_power`)."""
         if not self.cfg.fine_power:
             return scene, []
         seeds = self._measured_lights()
@@ -760,6 +762,7 @@ class Trainer:
         bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
             self.data.images, y)
         cams = self.cameras()
+        walls = on_planes(scene, self.room_planes)
         lights = []
         for seed in seeds:
             near = np.linalg.norm(scene.positions - seed.position, axis=1)
@@ -767,10 +770,14 @@ class Trainer:
             views = [i for i in seed.views if i in self.train]
             if not len(rows) or not views:
                 continue
-            factor, used = fine_power_factor(scene, rows, seed.position, seed.size,
-                                             [cams[i] for i in views],
-                                             [self.data.images[i] for i in views], y)
-            lights.append(FinePower(seed.position, rows, factor, used))
+            # a light flush with a wall (a ceiling panel) is seen along it: nothing cleared
+            keep = (np.ones(scene.count, bool) if on_a_plane(seed.position, 2.0 * seed.size,
+                                                             self.room_planes) else walls)
+            factor, used, cleared = matched_light(scene, rows, seed.position, seed.size,
+                                                  [cams[i] for i in views],
+                                                  [self.data.images[i] for i in views], y,
+                                                  keep=keep)
+            lights.append(FinePower(seed.position, rows, factor, used, cleared))
         return with_fine_power(scene, lights), lights
 
     def _fill_holes(self) -> None:
