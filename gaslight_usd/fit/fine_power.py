@@ -63,10 +63,11 @@ MIN_SHARE = 0.05
 MARGIN_PX = 2
 """Fitting pixels round the light's outline in each view's window."""
 FRONT_CLEAR_SIZES = 2.0
-"""Splats in front of the light, over a view's window, farther than this many of the
-light's sizes from it are left out of that view's drawing (module docstring). A fixed
-0.15 m cleared less of the hall's floaters (+0.19 where two sizes gave +0.12 stops at the
-middle probe, from +0.23); a shaded lamp's shade lies within two sizes of its bulb."""
+"""Splats across a view's sight line to the light, nearer the camera than this many of the
+light's sizes from it, are left out of that view's drawing and of the fit (module
+docstring). A fixed 0.15 m cleared less (``bulb:11``'s bulb from its true HDR views +0.19
+stops at the middle probe where two sizes left +0.12, from +0.23); a shaded lamp's shade
+lies within two sizes of its bulb."""
 
 
 @dataclass
