@@ -150,15 +150,13 @@ def matched_light(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size:
     median over the views that frame it whole, less :data:`TOLERANCE_STOPS` (1.0 and 0
     views where fewer than :data:`MIN_VIEWS` do); and the indices of the splats left out
     in front of it in the views that counted (none without a factor). ``keep``: (N,)
-    splats never left out (the room's walls, which a light flush with one is seen along);
-    all of them keeps every splat, the matching as it was before floaters were cleared."""
+    splats never left out (the room's walls, which a light flush with one is seen along;
+    other lights); all of them keeps every splat, the matching as it was before floaters
+    were cleared."""
     y = np.asarray(y_weights, np.float32)
     is_light = np.zeros(scene.count, bool)
     is_light[rows] = True
-    if keep is not None:
-        is_light_or_kept = is_light | keep
-    else:
-        is_light_or_kept = is_light
+    is_light_or_kept = is_light if keep is None else is_light | keep
     factors, cleared = [], np.zeros(scene.count, bool)
     for cam, image in zip(cameras, images, strict=True):
         box = _window(cam, centre, size)

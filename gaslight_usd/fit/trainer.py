@@ -762,7 +762,9 @@ class Trainer:
         bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
             self.data.images, y)
         cams = self.cameras()
-        walls = on_planes(scene, self.room_planes)
+        # never cleared from in front of a light: the room's walls, and anything as bright
+        # as a measured light (another light on the same sight line)
+        walls = on_planes(scene, self.room_planes) | bright
         lights = []
         for seed in seeds:
             near = np.linalg.norm(scene.positions - seed.position, axis=1)
