@@ -762,19 +762,23 @@ class Trainer:
         bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
             self.data.images, y)
         cams = self.cameras()
-        # never cleared from in front of a light: the room's walls, and anything as bright
-        # as a measured light (another light on the same sight line)
-        walls = on_planes(scene, self.room_planes) | bright
+        walls = on_planes(scene, self.room_planes)
+        own = [bright & (np.linalg.norm(scene.positions - seed.position, axis=1)
+                         <= KEEP_OUT_SIZES * seed.size) for seed in seeds]
+        claimed = np.sum(own, axis=0)  # how many measured lights hold each splat
         lights = []
-        for seed in seeds:
-            near = np.linalg.norm(scene.positions - seed.position, axis=1)
-            rows = np.flatnonzero(bright & (near <= KEEP_OUT_SIZES * seed.size))
+        for k, seed in enumerate(seeds):
+            rows = np.flatnonzero(own[k])
+            # never cleared from in front of a light: the room's walls, and the other
+            # measured lights (one may stand on the same sight line)
+            others = claimed - own[k] > 0
             views = [i for i in seed.views if i in self.train]
             if not len(rows) or not views:
                 continue
             # a light flush with a wall (a ceiling panel) is seen along it: nothing cleared
             keep = (np.ones(scene.count, bool) if on_a_plane(seed.position, 2.0 * seed.size,
-                                                             self.room_planes) else walls)
+                                                             self.room_planes)
+                    else walls | others)
             factor, used, cleared = matched_light(scene, rows, seed.position, seed.size,
                                                   [cams[i] for i in views],
                                                   [self.data.images[i] for i in views], y,
