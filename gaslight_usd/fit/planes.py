@@ -134,18 +134,18 @@ class Plane:
 
 def on_a_plane(point: np.ndarray, reach: float, planes: list[Plane]) -> bool:
     """Whether ``point`` lies within ``reach`` of one of ``planes``' patches (either side)."""
-    for plane in planes:
-        uv = point @ plane.axes.T
-        if abs(float(point @ plane.normal) - plane.offset) <= reach and bool(
-                np.all((uv >= plane.lo - reach) & (uv <= plane.hi + reach))):
-            return True
-    return False
+    return bool(_near_patches(np.asarray(point, np.float64).reshape(1, 3),
+                              np.array([float(reach)]), planes)[0])
 
 
 def on_planes(scene: SplatScene, planes: list[Plane]) -> np.ndarray:
     """(N,) splats whose 3-sigma reach touches one of ``planes``' patches."""
-    points = scene.positions.astype(np.float64)
-    reach = 3.0 * scene.scales.max(axis=1)
+    return _near_patches(scene.positions.astype(np.float64), 3.0 * scene.scales.max(axis=1),
+                         planes)
+
+
+def _near_patches(points: np.ndarray, reach: np.ndarray, planes: list[Plane]) -> np.ndarray:
+    """(N,) points within their ``reach`` of one of ``planes``' patches (either side)."""
     out = np.zeros(len(points), bool)
     for plane in planes:
         uv = points @ plane.axes.T
