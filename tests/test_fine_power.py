@@ -142,3 +142,40 @@ def test_a_floater_in_front_of_a_bulb_no_longer_brightens_it(monkeypatch):
     np.testing.assert_allclose(np.median([_window_light(clean, cam, 4) for cam in cams]),
                                np.median([_window_light(scene, cam, 4) for cam in cams]),
                                rtol=0.05)
+
+
+def test_a_clipped_bulb_a_darker_frame_measured_is_matched_to_that_frame():
+    """Three photos clip the bulb (their fitting-size floors mark it), a fourth, darker
+    frame measured it. Only that frame measures it (:func:`measuring_views`); a fit that
+    drew the bulb 1.4 x over it (the clipped views bound it only from below) is brought
+    back to it from that one frame, which the default two-view rule would not count."""
+    from gaslight_usd.fit.fine_power import MIN_VIEWS, matched_light, measuring_views
+
+    truth, rows = _wall_and_bulb(1)
+    cams = _cameras()
+    measured = [area_resize(render(truth, scale_camera_to(cam, SIZE * 4, SIZE * 4)).image
+                            .numpy(), SIZE, SIZE) for cam in cams]
+    white = 10.0
+    images, floors = [], []
+    for k, image in enumerate(measured):
+        if k == 3:  # the darker frame: nothing clipped
+            images.append(image)
+            floors.append(None)
+            continue
+        over = (image @ Y709) > white
+        assert over.any()  # the bright photos clip the bulb
+        images.append(np.where(over[..., None], white, image))
+        floors.append(np.where(over, white, 0.0).astype(np.float32))
+    assert measuring_views(BULB, 0.02, cams, images, floors, Y709, white) == [3]
+    # a view that clipped nothing round the bulb but reads it under twice the white
+    # does not measure it
+    assert measuring_views(BULB, 0.02, cams[3:], [images[3] * 1e-4], [None], Y709,
+                           white) == []
+    fit = with_fine_power(truth, [FinePower(BULB, rows, 1.4, 1)])
+    dark = [cams[3]], [images[3]]
+    assert matched_light(fit, rows, BULB, 0.02, *dark, Y709)[:2] == (1.0, 0)
+    assert MIN_VIEWS > 1
+    factor, used, _ = matched_light(fit, rows, BULB, 0.02, *dark, Y709, tolerance=0.0,
+                                    min_views=1)
+    assert used == 1
+    np.testing.assert_allclose(np.log2(factor), -np.log2(1.4), atol=0.05)

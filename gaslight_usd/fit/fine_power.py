@@ -15,8 +15,11 @@ until, drawn at :data:`FINE` x the fitting size, the pixels round it in the trai
 that frame it hold the light those views measured there, to within
 :data:`TOLERANCE_STOPS` (:func:`fine_power_factor`). A
 light's colour does not change any splat's opacity, so its share of a pixel is linear in
-the factor. Clipped lights are not touched here: their power is weighed from the surfaces
-they light, with the light drawn fine (:mod:`.power`).
+the factor. A light every view clipped is not touched here: its power is weighed from the
+surfaces it lights, with the light drawn fine (:mod:`.power`). One the other views clipped
+and a darker frame measured (the README's capture) is matched to that frame
+(:func:`measuring_views`): the clipped views bound it only from below, and the fit drew it
+over what the frame measured.
 
 The same factor also takes back what the fit's floaters hid. A fit leaves dim, loose
 splats in the room, and on the few rays from the cameras to a bulb they hide part of it
@@ -57,7 +60,10 @@ HDR: factors of 0.05-0.11 stops where the probes already read it within 0.04), s
 smaller factor is not evidence of a missing power."""
 MIN_VIEWS = 2
 """Views that must frame the light whole for a factor (one view's window is one sample of
-a cluster's fine drawing: on ``shade:7`` a speck above the shade got the cap from one)."""
+a cluster's fine drawing: on ``shade:7`` a speck above the shade got the cap from one).
+A clipped light a darker frame measured needs only that frame: its clipped outlines in
+three or more other views already say it is a light (:func:`.light_seeds.find_light_seeds`),
+and the README's capture shoots one such frame per light."""
 MIN_SHARE = 0.05
 """A view counts only where the light gives at least this share of its window's light."""
 MARGIN_PX = 2
@@ -105,6 +111,27 @@ def _window(cam: PinholeCamera, centre: np.ndarray, size: float
     return u0, v0, u1, v1
 
 
+def measuring_views(centre: np.ndarray, size: float, cameras: list[PinholeCamera],
+                    images: list[np.ndarray], floors: list[np.ndarray | None],
+                    y_weights: np.ndarray, white: float) -> list[int]:
+    """Indices of ``cameras`` that frame a clipped light at ``centre`` whole, clipped
+    nothing round it and read it over twice ``white`` (a darker frame shot for it, as
+    :func:`.power.light_sighting` calls "measured"): the views its fine drawing is matched
+    to when the others clipped it."""
+    y = np.asarray(y_weights, np.float32)
+    out = []
+    for i, (cam, image, floor) in enumerate(zip(cameras, images, floors, strict=True)):
+        box = _window(cam, centre, size)
+        if box is None:
+            continue
+        u0, v0, u1, v1 = box
+        if floor is not None and bool((floor[v0:v1, u0:u1] > 0).any()):
+            continue
+        if float((image[v0:v1, u0:u1] @ y).max()) > 2.0 * white:
+            out.append(i)
+    return out
+
+
 def _fine_crop(cam: PinholeCamera, box: tuple[int, int, int, int], fine: int) -> PinholeCamera:
     """The camera of ``box`` (fitting pixels) drawn ``fine`` times finer."""
     u0, v0, u1, v1 = box
@@ -141,14 +168,14 @@ def fine_power_factor(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, s
 def matched_light(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size: float,
                   cameras: list[PinholeCamera], images: list[np.ndarray],
                   y_weights: np.ndarray, fine: int = FINE,
-                  tolerance: float = TOLERANCE_STOPS, keep: np.ndarray | None = None
-                  ) -> tuple[float, int, np.ndarray]:
+                  tolerance: float = TOLERANCE_STOPS, keep: np.ndarray | None = None,
+                  min_views: int = MIN_VIEWS) -> tuple[float, int, np.ndarray]:
     """(factor, views, cleared): what the splats ``rows`` (a light at ``centre``, ``size``
     its radius) must be brightened by so that, drawn ``fine`` x finer without the splats
     in front of it (:func:`in_front`, :data:`FRONT_CLEAR_SIZES`), the windows round it in
     ``cameras`` hold what ``images`` (their views at fitting size) measured there; the
     median over the views that frame it whole, less :data:`TOLERANCE_STOPS` (1.0 and 0
-    views where fewer than :data:`MIN_VIEWS` do); and the indices of the splats left out
+    views where fewer than ``min_views`` do); and the indices of the splats left out
     in front of it in the views that counted (none without a factor). ``keep``: (N,)
     splats never left out (the room's walls, which a light flush with one is seen along;
     other lights); all of them keeps every splat, the matching as it was before floaters
@@ -175,7 +202,7 @@ def matched_light(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size:
             continue
         factors.append(1.0 + (measured - drawn) / shown)
         cleared |= front
-    if len(factors) < MIN_VIEWS:
+    if len(factors) < min_views:
         return 1.0, 0, np.zeros(0, np.int64)
     stops = math.log2(max(float(np.median(factors)), 2.0**-MAX_FACTOR_STOPS))
     stops = math.copysign(min(max(abs(stops) - tolerance, 0.0), MAX_FACTOR_STOPS), stops)
