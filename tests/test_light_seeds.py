@@ -27,6 +27,7 @@ from gaslight_usd.fit.presets import FitConfig
 from gaslight_usd.fit.trainer import Trainer
 from gaslight_usd.lights import search_lights
 from gaslight_usd.poses.colmap import ColmapModel
+from gaslight_usd.render import render
 from gaslight_usd.resize import area_resize
 from gaslight_usd.sightings import (
     Sightings,
@@ -278,3 +279,31 @@ def test_a_dark_frames_bulb_pixels_start_on_the_seeded_bulb():
     # on the rays' points nearest the seed: within the reach of its size (the sweep alone:
     # 0.17-2 m off)
     assert np.linalg.norm(pts - bulb, axis=1).max() < SEED_REACH * 0.06
+
+
+def test_a_clipped_lamp_a_darker_frame_measured_is_matched_to_that_frame_alone():
+    """The photos clip the lamp; one more frame, from the first photo's place and
+    darker, measured it. The fit matches the lamp drawn fine to that frame
+    (``Trainer._lights_dark_frames_measured``, :mod:`gaslight_usd.fit.fine_power`): the
+    seeded lamp, with that frame as its one view; without the frame, no lamp is."""
+    cams, views = _clipped_views()
+    scene, _ = room_scene()
+    dark = render(scene, cams[0]).image.numpy().astype(np.float32)  # nothing clipped
+    floors = [np.where((v >= w).any(axis=2), w, 0.0).astype(np.float32)
+              for v, w in zip(views, WHITES, strict=True)]
+
+    def trainer(images, floors):
+        all_cams = cams + [cams[0]] * (len(images) - len(cams))
+        data = FitData(names=[f"v{i}" for i in range(len(images))], cameras=all_cams,
+                       images=images, model=ColmapModel(cameras=all_cams),
+                       colour_space="lin_rec709", floors=floors)
+        fit = Trainer(data, FitConfig(iterations=1, init_points=2000, budget=4000,
+                                      holdout_every=0))
+        fit.refiner = None  # not fitted: the poses as given
+        return fit
+
+    with_frame = trainer(views + [dark], floors + [None])
+    seeds, seed_views, min_views = with_frame._lights_dark_frames_measured()
+    assert len(seeds) == 1 and np.linalg.norm(seeds[0].position - LAMP) < 0.05
+    assert seed_views == [[len(views)]] and min_views == 1
+    assert trainer(views, floors)._lights_dark_frames_measured()[0] == []
