@@ -18,7 +18,9 @@ Where the fit found the room's box (its walls, ceiling and floor: the PLY's
 that box is inside the set too, whatever the viewpoint sees: a floater under the
 ceiling, or the least depth of a bin's neighbourhood, otherwise cuts the space short,
 and a ceiling panel's splats on the ceiling were backdrop, never a light
-(:data:`ROOM_SLACK`).
+(:data:`ROOM_SLACK`). A box of five sides (a plain floor the sparse points miss) is
+closed on its sixth where the viewpoint sees the surfaces that way
+(:func:`_missing_side`).
 
 Where bright splats make most of what a direction shows (a window, a lit patch of
 ceiling) there is no dim surface, and the boundary falls through to whatever lies
@@ -74,6 +76,9 @@ round the viewpoint (a floor the photos hardly see may be missing; with fewer, a
 with no plane would let in whatever the percentile box holds beyond it)."""
 SIDE_COS = 0.9
 """Two planes close the same side when their inward normals are this close."""
+MISSING_SIDE_DEG = 30.0
+"""A box with five sides is closed on its sixth where the viewpoint sees the surfaces
+within this angle of that side's direction (:func:`_missing_side`)."""
 
 
 def room_half_spaces(metadata: Mapping[str, Any], viewpoint: np.ndarray
@@ -210,10 +215,41 @@ def capture_space(scene: SplatScene, viewpoints: np.ndarray | None = None,
         box = np.array([[-np.inf] * 3, [np.inf] * 3])
     space = CaptureSpace(viewpoints, views, box, source, local)
     space.room = room_half_spaces(scene.metadata, viewpoints.mean(axis=0))
+    missing = _missing_side(space.room, views)
+    if missing is not None:
+        space.room.append(missing)
     if space.room:
         space.room_slack = ROOM_SLACK * space.median_depth()
         space.source += f", inside the fit's room box ({len(space.room)} planes)"
     return space
+
+
+def _missing_side(room: list[tuple[np.ndarray, float]], views: list[Surroundings]
+                  ) -> tuple[np.ndarray, float] | None:
+    """The sixth side of a room box that closes five (a plain floor the sparse points
+    miss), as an inward ``(normal, offset)`` half space through the median of the
+    visible surfaces the viewpoints see within :data:`MISSING_SIDE_DEG` of its
+    direction; None where the box has no side missing or nothing is seen that way.
+
+    Open, that side let in whatever the percentile box holds beyond it: in the sun room
+    of the README's capture, the splats of the sunlit patch the fit left under the floor
+    were inside the set down to the box's bottom, 1.4 m under the floor, and the sunk
+    lights' pass moved them there (:mod:`gaslight_usd.fit.sunk_lights`)."""
+    normals = [n for n, _ in room]
+    lonely = [n for n in normals if all(float(n @ m) > -SIDE_COS for m in normals)]
+    if len(normals) < 5 or len(lonely) != 1:
+        return None
+    inward = -np.asarray(lonely[0], np.float64)  # the missing side lies along -inward
+    cos = np.cos(np.radians(MISSING_SIDE_DEG))
+    offsets = []
+    for view in views:
+        toward = (view.directions @ -inward > cos) & np.isfinite(view.depth)
+        points = view.point + view.depth[toward, None] * view.directions[toward]
+        offsets.append(points @ inward)
+    offsets = np.concatenate(offsets) if offsets else np.zeros(0)
+    if not len(offsets):
+        return None
+    return inward, float(np.median(offsets))
 
 
 def _planes(scene: SplatScene, view: Surroundings, bright: np.ndarray) -> np.ndarray:

@@ -618,3 +618,25 @@ def test_a_box_open_on_two_sides_is_no_room():
     # two planes closing one side count as one side
     twice = ROOM_BOX[:4] + [{"normal": [0.9987, 0.05, 0.0], "offset": -2.4}]
     assert room_half_spaces({"fit_metrics": {"room_box": twice}}, eye) == []
+
+
+def test_a_box_open_on_one_side_is_closed_where_the_viewpoint_sees_that_side():
+    """A plain floor the sparse points miss leaves the fit's box five sides. Open, the
+    sixth let in all the percentile box holds under the floor (the sun room's patch,
+    left under its floor by a fit, was "inside" and moved down to the box's bottom); it
+    is closed where the viewpoint sees the floor."""
+    scene, _ = room_scene()
+    scene.metadata = {**scene.metadata,
+                      "fit_metrics": {**scene.metadata["fit_metrics"],
+                                      "room_box": ROOM_BOX[1:]}}  # no floor
+    space = capture_space(scene)
+    assert len(space.room) == 6
+    normal, offset = space.room[-1]
+    np.testing.assert_allclose(normal, [0.0, 1.0, 0.0], atol=1e-9)
+    assert abs(offset) < 0.1  # the floor, y = 0
+    under, above = np.array([[0.3, -0.25, 0.2]]), np.array([[0.3, 0.25, 0.2]])
+    assert space.box[0, 1] < -0.25  # the percentile box holds the point under the floor
+    assert not space.inside(under)[0] and space.inside(above)[0]
+    # all six given: nothing added
+    scene.metadata["fit_metrics"]["room_box"] = ROOM_BOX
+    assert len(capture_space(scene).room) == 6

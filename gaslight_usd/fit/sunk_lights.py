@@ -391,11 +391,12 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     centres = np.array([cam.center for cam in cameras])
     eyes = centres[sightings.view]  # per region
     probe = scene.subset(np.arange(scene.count))
-    # the captured space without the room's box (gaslight_usd.capture): with it, the sun
-    # room's fit moved its bright splats twice as far (1.9 m on average, not 1.0) and the
-    # sunlit patch a darker frame measured came out 1-1.5 stops short at the probes
-    # (docs/measurements.md, session 55)
-    probe.metadata = {**scene.metadata, "exposure_scale": float(np.median(whites))}
+    # the captured space holds the room's box (gaslight_usd.capture), closed on a side it
+    # lacks where the viewpoint sees that side: open, a box without its floor let the
+    # sun room's sunlit patch sink to the box's bottom (docs/measurements.md, session 56)
+    probe.metadata = {**scene.metadata, "exposure_scale": float(np.median(whites)),
+                      "fit_metrics": {**(scene.metadata.get("fit_metrics") or {}),
+                                      "room_box": [plane.as_dict() for plane in planes]}}
     space = capture_space(probe, centres, planes=True)
     sigma = splat_sigma(scene)
     area = scene.opacities * np.prod(np.sort(scene.scales, axis=1)[:, 1:], axis=1)
