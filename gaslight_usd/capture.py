@@ -237,7 +237,9 @@ def _missing_side(room: list[tuple[np.ndarray, float]], views: list[Surroundings
     lights' pass moved them there (:mod:`gaslight_usd.fit.sunk_lights`)."""
     normals = [n for n, _ in room]
     lonely = [n for n in normals if all(float(n @ m) > -SIDE_COS for m in normals)]
-    if len(normals) < 5 or len(lonely) != 1:
+    # two planes may close the one side without an opposite (room_half_spaces)
+    if len(normals) < 5 or not lonely or any(float(lonely[0] @ n) < SIDE_COS
+                                             for n in lonely):
         return None
     inward = -np.asarray(lonely[0], np.float64)  # the missing side lies along -inward
     cos = np.cos(np.radians(MISSING_SIDE_DEG))
