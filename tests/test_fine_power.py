@@ -8,7 +8,7 @@ from gaslight_usd.fit.data import scale_camera_to
 from gaslight_usd.fit.fine_power import (
     TOLERANCE_STOPS,
     FinePower,
-    fine_power_factor,
+    matched_light,
     with_fine_power,
 )
 from gaslight_usd.fit.gather import aimed_camera
@@ -37,6 +37,11 @@ def _wall_and_bulb(cluster: int, seed: int = 0) -> tuple[SplatScene, np.ndarray]
     return scene, np.arange(len(wall), len(pos))
 
 
+def factor_and_views(*args, **kwargs) -> tuple[float, int]:
+    """(factor, views) of :func:`matched_light`."""
+    return matched_light(*args, **kwargs)[:2]
+
+
 def _cameras() -> list:
     eyes = [np.array([x, 1.1, -2.5]) for x in (-0.8, -0.3, 0.3, 0.8)]
     return [aimed_camera(e, BULB, 0.5, SIZE) for e in eyes]
@@ -60,11 +65,11 @@ def test_a_cluster_that_dims_drawn_finer_is_brightened_to_what_its_views_measure
     coarse = [_window_light(scene, cam, 1) for cam in cams]
     fine = [_window_light(scene, cam, 4) for cam in cams]
     assert max(f / c for f, c in zip(fine, coarse, strict=True)) < 0.9  # it dims
-    factor, used = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709,
+    factor, used = factor_and_views(scene, rows, BULB, 0.02, cams, views, Y709,
                                      tolerance=0.0)
     assert used == len(cams) and factor > 1.1
     # by default the first TOLERANCE_STOPS of it are not applied
-    shrunk, _ = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709)
+    shrunk, _ = factor_and_views(scene, rows, BULB, 0.02, cams, views, Y709)
     np.testing.assert_allclose(np.log2(shrunk), np.log2(factor) - TOLERANCE_STOPS, atol=1e-6)
     fixed = with_fine_power(scene, [FinePower(BULB, rows, factor, used)])
     after = [_window_light(fixed, cam, 4) for cam in cams]
@@ -81,7 +86,7 @@ def test_one_splat_keeps_its_power_at_any_size_and_is_left_alone():
     cams = _cameras()
     views = [area_resize(render(scene, scale_camera_to(cam, SIZE * 4, SIZE * 4)).image.numpy(),
                          SIZE, SIZE) for cam in cams]
-    factor, used = fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709)
+    factor, used = factor_and_views(scene, rows, BULB, 0.02, cams, views, Y709)
     assert used == len(cams)
     assert abs(np.log2(factor)) < 0.05
 
@@ -91,10 +96,10 @@ def test_a_light_fewer_than_two_views_frame_whole_keeps_its_power():
     cams = [aimed_camera(np.array([0.0, 1.1, -2.5]), BULB + np.array([1.2, 0.0, 0.0]), 0.5,
                          SIZE)]
     views = [render(scene, cam).image.numpy() for cam in cams]
-    assert fine_power_factor(scene, rows, BULB, 0.02, cams, views, Y709) == (1.0, 0)
+    assert factor_and_views(scene, rows, BULB, 0.02, cams, views, Y709) == (1.0, 0)
     one = _cameras()[:1]  # it dims in this view too, but one window is one sample
     seen = [render(scene, cam).image.numpy() for cam in one]
-    assert fine_power_factor(scene, rows, BULB, 0.02, one, seen, Y709) == (1.0, 0)
+    assert factor_and_views(scene, rows, BULB, 0.02, one, seen, Y709) == (1.0, 0)
 
 
 def test_a_floater_in_front_of_a_bulb_no_longer_brightens_it(monkeypatch):
@@ -115,14 +120,14 @@ def test_a_floater_in_front_of_a_bulb_no_longer_brightens_it(monkeypatch):
                                         metadata={"antialiased": True})
     fogged = concatenate(scene, floater)
     monkeypatch.setattr(fine_power, "FRONT_CLEAR_SIZES", 1e6)  # clear nothing
-    hidden, used = fine_power_factor(fogged, rows, BULB, 0.02, cams, views, Y709,
+    hidden, used = factor_and_views(fogged, rows, BULB, 0.02, cams, views, Y709,
                                      tolerance=0.0)
     assert used == len(cams) and np.log2(hidden) > 0.15  # the floater hides some of it
     fitted = with_fine_power(fogged, [FinePower(BULB, rows, hidden, used)])
-    through, _ = fine_power_factor(fitted, rows, BULB, 0.02, cams, views, Y709, tolerance=0.0)
+    through, _ = factor_and_views(fitted, rows, BULB, 0.02, cams, views, Y709, tolerance=0.0)
     assert abs(np.log2(through)) < 0.03
     monkeypatch.undo()
-    back, used = fine_power_factor(fitted, rows, BULB, 0.02, cams, views, Y709, tolerance=0.0)
+    back, used = factor_and_views(fitted, rows, BULB, 0.02, cams, views, Y709, tolerance=0.0)
     assert used == len(cams)
     np.testing.assert_allclose(np.log2(back), -np.log2(hidden), atol=0.05)
     # the wall behind, farther than the light, is never cleared; the floater is, and the

@@ -13,7 +13,7 @@ balanced``; docs/measurements.md).
 So each light the views measured (:func:`.light_seeds.measured_light_seeds`) is brightened
 until, drawn at :data:`FINE` x the fitting size, the pixels round it in the training views
 that frame it hold the light those views measured there, to within
-:data:`TOLERANCE_STOPS` (:func:`fine_power_factor`). A
+:data:`TOLERANCE_STOPS` (:func:`matched_light`). A
 light's colour does not change any splat's opacity, so its share of a pixel is linear in
 the factor. A light every view clipped is not touched here: its power is weighed from the
 surfaces it lights, with the light drawn fine (:mod:`.power`). One the other views clipped
@@ -153,16 +153,6 @@ def in_front(scene: SplatScene, eye: np.ndarray, centre: np.ndarray, size: float
     off = np.linalg.norm(rel - along[:, None] * axis, axis=1)
     return (along > 0) & (along < length - clear) & (off <= 3.0 * scene.scales.max(axis=1)
                                                       + size)
-
-
-def fine_power_factor(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size: float,
-                      cameras: list[PinholeCamera], images: list[np.ndarray],
-                      y_weights: np.ndarray, fine: int = FINE,
-                      tolerance: float = TOLERANCE_STOPS) -> tuple[float, int]:
-    """(factor, views) of :func:`matched_light`."""
-    factor, views, _ = matched_light(scene, rows, centre, size, cameras, images, y_weights,
-                                     fine, tolerance)
-    return factor, views
 
 
 def matched_light(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size: float,

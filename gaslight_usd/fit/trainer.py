@@ -761,7 +761,8 @@ class Trainer:
         if seeds:
             seed_views = [[i for i in seed.views if i in self.train] for seed in seeds]
         else:  # a clipped set: the compact lights a darker frame measured, matched to it
-            seeds, seed_views, min_views = self._lights_dark_frames_measured()
+            seeds, seed_views = self._lights_dark_frames_measured()
+            min_views = 1  # the darker frame shot for the light (.fine_power.MIN_VIEWS)
         if not seeds:
             return scene, []
         y = self.y_weights.cpu().numpy()
@@ -792,18 +793,17 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used, cleared))
         return with_fine_power(scene, lights), lights
 
-    def _lights_dark_frames_measured(self) -> tuple[list[LightSeed], list[list[int]], int]:
+    def _lights_dark_frames_measured(self) -> tuple[list[LightSeed], list[list[int]]]:
         """The compact lights the photos clipped (:meth:`_light_seeds`) that a training
         view measured unclipped (a darker frame shot for them:
-        :func:`.fine_power.measuring_views`), those views, and how many a factor needs (one:
-        :data:`.fine_power.MIN_VIEWS`). The fit matched such a light to that frame only at
-        the fitting size, and the other views' clipped pixels (bounds, with the uplift's
-        fill pulling weakly) left it free to overshoot it: on the README's capture of
-        ``bulb:7`` the fit drew the bulb 1.4 x what its darker frame measured
-        (``gaslight2usd bench --suite chain --method "recursive + extra dark frames"``)."""
+        :func:`.fine_power.measuring_views`), and those views. The fit matched such a
+        light to that frame only at the fitting size, and the other views' clipped pixels
+        (bounds, with the uplift's fill pulling weakly) left it free to overshoot or fall
+        short of it (``gaslight2usd bench --suite chain --method "recursive + extra dark
+        frames"``; docs/measurements.md, session 56)."""
         whites = self._view_whites(self.train)
         if whites is None:
-            return [], [], MIN_VIEWS
+            return [], []
         white = float(np.median(whites))
         cams = self.cameras()
         views = [cams[i] for i in self.train]
@@ -817,7 +817,7 @@ class Trainer:
             if measuring:
                 seeds.append(seed)
                 seed_views.append([self.train[i] for i in measuring])
-        return seeds, seed_views, 1
+        return seeds, seed_views
 
     def _fill_holes(self) -> None:
         """Splats on the training views' patches that no splat covers (:mod:`.holes`):
