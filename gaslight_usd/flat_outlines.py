@@ -36,7 +36,7 @@ Measured by ``gaslight2usd bench --suite chain`` (``rect_iou_<light>``,
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -118,6 +118,26 @@ class Outline:
     measured_sides: int = 0
     """How many of its four sides were put where a view that measured the light sees it
     end (:mod:`gaslight_usd.outline_edges`); the rest are where the lit cells end."""
+    lit_uv: np.ndarray | None = field(default=None, repr=False, compare=False)
+    """(K, 2) the lit cells' centres' coordinates along ``u`` and ``v`` (not kept in the
+    metadata): :meth:`fill_within` reads them."""
+    cell: float = 0.0
+    """The side of those cells."""
+
+    def fill_within(self, centre: np.ndarray, half_size: np.ndarray) -> float:
+        """The share of the rectangle (``centre``, ``half_size``, on this outline's plane
+        and axes) that the lit cells fill; the outline's own :attr:`fill` where it keeps
+        no cells. A clipped light's lit cells run past it (the photos' halo, pixels only
+        partly on it), so the cells bounding it leave its corners empty: a 0.4 m ceiling
+        panel's 0.46 x 0.50 m outline was 0.78 full, its 0.39 m sides where the measuring
+        views see it end all but full (``docs/measurements.md``, session 57)."""
+        if self.lit_uv is None or self.cell <= 0:
+            return self.fill
+        middle = np.array([np.asarray(centre) @ self.u, np.asarray(centre) @ self.v])
+        rel = np.abs(self.lit_uv - middle)
+        half = np.asarray(half_size, np.float64)
+        inside = int(np.all(rel <= half, axis=1).sum())
+        return float(min(1.0, inside * self.cell ** 2 / max(float(np.prod(2 * half)), 1e-12)))
 
     @property
     def clean(self) -> bool:
@@ -238,7 +258,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
                 counts[0] = 0
                 region = near == int(np.argmax(counts))
             outline = _outline_of(region, gu[bu], gv[bv], cell, depth, normal, u, v)
-            if outline is not None:
+            if outline is not None and _in_room(outline, planes, k):
                 out.append(outline)
         # one view cannot sweep the plane: where two views moved it under their lights,
         # the plane (a flat ceiling) is there under one view's light too
@@ -247,11 +267,7 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
         for region in _single_view_regions(framed, seen, which, good):
             outline = _outline_of(region, gu, gv, cell, at, normal, u, v)
-            # one view's light seen past a wall or the ceiling, put on this plane's
-            # stretch beyond them, is none of this room's
-            if outline is not None and all(
-                    float(m @ outline.centre) - d > 0
-                    for j, (m, d) in enumerate(planes) if j != k):
+            if outline is not None and _in_room(outline, planes, k):
                 outline.single_view = True
                 out.append(outline)
     return sorted(out, key=lambda o: -o.cells)[:MAX_OUTLINES]
@@ -367,6 +383,15 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
     return float(offset + steps[best])
 
 
+def _in_room(outline: Outline, planes: Sequence[tuple[np.ndarray, float]], k: int) -> bool:
+    """Whether ``outline``, on plane ``k`` of ``planes``, lies on the room's side of the
+    others: a light seen past a wall or the ceiling, put on this plane's stretch beyond
+    them (a ceiling panel's pixels carried on to a wall's plane over the ceiling), is none
+    of this room's."""
+    return all(float(np.asarray(m) @ outline.centre) - d > 0
+               for j, (m, d) in enumerate(planes) if j != k)
+
+
 def _outline_of(region: np.ndarray, gu: np.ndarray, gv: np.ndarray, cell: float,
                 offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray
                 ) -> Outline | None:
@@ -380,9 +405,10 @@ def _outline_of(region: np.ndarray, gu: np.ndarray, gv: np.ndarray, cell: float,
     b0, b1 = gv[cols.min()] - cell / 2, gv[cols.max()] + cell / 2
     box = (rows.max() - rows.min() + 1) * (cols.max() - cols.min() + 1)
     centre = offset * normal + (a0 + a1) / 2 * u + (b0 + b1) / 2 * v
+    lit_uv = np.stack([gu[rows], gv[cols]], axis=1)
     return Outline(centre=centre, normal=normal.copy(), u=u.copy(), v=v.copy(),
                    half_size=np.array([(a1 - a0) / 2, (b1 - b0) / 2]), cells=cells,
-                   fill=float(cells / box))
+                   fill=float(cells / box), lit_uv=lit_uv, cell=float(cell))
 
 
 def lit_masks(images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],

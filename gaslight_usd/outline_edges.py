@@ -171,5 +171,7 @@ def refine_edges(outline: Outline, cameras: Sequence[PinholeCamera],
     shift = (low + high) / 2.0
     centre = (np.asarray(outline.centre, np.float64) + shift[0] * np.asarray(outline.u)
               + shift[1] * np.asarray(outline.v))
-    return replace(outline, centre=centre, half_size=(high - low) / 2.0,
-                   measured_sides=int(np.isfinite(past).sum()))
+    half_size = (high - low) / 2.0
+    return replace(outline, centre=centre, half_size=half_size,
+                   measured_sides=int(np.isfinite(past).sum()),
+                   fill=outline.fill_within(centre, half_size))

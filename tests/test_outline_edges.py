@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from gaslight_usd.flat_outlines import Outline, lit_masks, plane_outlines
 from gaslight_usd.outline_edges import luminances, refine_outlines, side_offsets
@@ -106,3 +107,46 @@ def test_a_view_with_no_light_there_moves_nothing(level):
     images = [image_of(c, level) for c in CENTRES]
     outline = too_large()
     assert refine_outlines([outline], cams, images, [None] * len(images), WEIGHTS)[0] is outline
+
+
+def halo_photos(sigma: float = 3.0, white: float = 20.0) -> tuple[list, list]:
+    """The five views as photos that clipped the panel and its blur: each clipped region
+    the panel grown by a halo with round corners."""
+    photos, floors = [], []
+    for c in CENTRES:
+        image = image_of(c)
+        image = np.stack([ndimage.gaussian_filter(image[..., k], sigma) for k in range(3)], -1)
+        floors.append(np.where(image[..., 1] >= white, white, 0.0).astype(np.float32))
+        photos.append(np.minimum(image, white))
+    return photos, floors
+
+
+def test_a_clipped_panels_round_halo_is_its_rectangle_once_a_darker_frame_sets_its_sides():
+    """The clipped photos' outline runs past the panel, round at its corners, and fills
+    too little of the box bounding it to be a light's rectangle; cut to the sides a
+    darker frame sees, its lit cells fill it."""
+    cams = views()
+    photos, floors = halo_photos()
+    found = panel_outline(plane_outlines(CEILING, cams, lit_masks(photos, floors, WEIGHTS)))
+    assert found.half_size.min() > PANEL_HALF + 0.05 and not found.clean
+    dark = image_of(CENTRES[0]) / 100.0
+    (refined,) = refine_outlines([found], cams + [cams[0]], photos + [dark], floors + [None],
+                                 WEIGHTS)
+    assert refined.measured_sides >= 3 and refined.clean and refined.fill > 0.9
+    # the metadata keeps the fill, not the cells
+    kept = Outline.from_dict(refined.as_dict())
+    assert kept.fill == pytest.approx(refined.fill, abs=1e-4)
+    assert kept.fill_within(kept.centre, kept.half_size / 2) == kept.fill
+
+
+def test_a_panels_light_carried_past_the_ceiling_onto_a_walls_plane_is_not_outlined():
+    """A photo and its darker frame, shot from one place, agree on the panel's light at any
+    depth along their rays: carried past the ceiling onto the far wall's plane, it made a
+    rectangle there, over the room (the chain bench's ``panels:7``)."""
+    cam = views()[0]
+    photos, floors = halo_photos(sigma=1.0)
+    dark = image_of(CENTRES[0]) / 100.0
+    far_wall = (np.array([1.0, 0.0, 0.0]), -2.5)  # x = -2.5, beyond the panel
+    masks = lit_masks([photos[0], dark], [floors[0], None], WEIGHTS)
+    outlines = plane_outlines([CEILING[0], far_wall], [cam, cam], masks)
+    assert len(outlines) == 1 and outlines[0].normal[1] < -0.9
