@@ -88,6 +88,12 @@ FACE_ON_COS = 0.8
 over this): there the outlines hardly slide with the plane's depth, and their spread says
 nothing of it (windows seen across a room, |cos| 0.97-0.99, were moved up to 12 cm off
 their walls)."""
+PLACES_APART = 0.05
+"""...and only by views at least this share of the cameras' distance apart: a photo and its
+darker frame shot from one place see the light's outline at one place at any depth, and
+their outlines' spread (one clipped, one measured) moved a ceiling panel by chance
+(``panels:7``: 12 cm under it, or onto it); such a region takes the depth views from two
+places agreed on for the plane's other lights."""
 SINGLE_VIEW_MARGIN = 2
 """A region only one view frames, lit there, is outlined too (a ceiling panel the other
 photos pass by: ``panels:7``'s second panel, which one of its photos frames), where the
@@ -238,6 +244,8 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
         boxes = ndimage.find_objects(labels)
         largest = [lab for lab in np.argsort(-sizes[1:]) + 1 if sizes[lab] >= MIN_CELLS]
         swept = []  # the depths the views agreed on where they moved a region's plane
+        one_place = []  # regions only views from one place frame: they cannot sweep it
+        regions = []
         for lab in largest[:MAX_OUTLINES]:
             su, sv = boxes[lab - 1]
             # the plane's depth there, as the views agree on it (module docstring)
@@ -246,10 +254,20 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             bv = slice(max(0, sv.start - margin), min(nv, sv.stop + margin))
             depth = _agreeing_offset(offset, normal, u, v, gu[bu], gv[bv], cameras, lit,
                                      front, float(np.median(dist[front])))
+            if depth is None:
+                one_place.append((lab, bu, bv))
+                continue
+            if depth != offset:
+                swept.append(depth)
+            regions.append((depth, lab, bu, bv))
+        # one place cannot sweep the plane: where views from two moved it under their
+        # lights, the plane (a flat ceiling) is there under this light too
+        at = float(np.median(swept)) if swept else offset
+        regions += [(at, lab, bu, bv) for lab, bu, bv in one_place]
+        for depth, lab, bu, bv in regions:
             if depth == offset:
                 region = labels[bu, bv] == lab
             else:
-                swept.append(depth)
                 moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front)
                 near, n_near = ndimage.label(moved, structure=np.ones((3, 3)))
                 if not n_near:
@@ -260,9 +278,6 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             outline = _outline_of(region, gu[bu], gv[bv], cell, depth, normal, u, v)
             if outline is not None and _in_room(outline, planes, k):
                 out.append(outline)
-        # one view cannot sweep the plane: where two views moved it under their lights,
-        # the plane (a flat ceiling) is there under one view's light too
-        at = float(np.median(swept)) if swept else offset
         framed, seen, which = _counts(at, normal, u, v, gu, gv, cameras, lit, front)
         good = (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
         for region in _single_view_regions(framed, seen, which, good):
@@ -345,12 +360,13 @@ def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray
 def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray,
                      gu: np.ndarray, gv: np.ndarray, cameras: Sequence[PinholeCamera],
                      lit: Sequence[np.ndarray | None], front: np.ndarray,
-                     distance: float) -> float:
+                     distance: float) -> float | None:
     """The plane offset within :data:`DEPTH_SWEEP` of the cameras' ``distance`` where the
     views' lit regions on the grid (cell centres ``gu``, ``gv``) coincide: the least spread
     of their centres, over the views that frame the whole grid (seen from apart, the
     views' outlines on a plane at the wrong depth slide apart). ``offset`` unless that
-    spread is under :data:`DEPTH_GAIN` of the spread there."""
+    spread is under :data:`DEPTH_GAIN` of the spread there; None where those views stand
+    in one place (:data:`PLACES_APART`)."""
     uu, vv = np.meshgrid(gu, gv, indexing="ij")
     flat = np.stack([uu.ravel(), vv.ravel()], axis=1)
     steps = np.linspace(-DEPTH_SWEEP, DEPTH_SWEEP, 2 * DEPTH_STEPS + 1) * distance
@@ -368,6 +384,9 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
               if all(row[k] is not None and row[k].sum() >= MIN_CELLS for row in lit_cells)]
     if len(chosen) < MIN_VIEWS:
         return offset
+    places = np.array([cameras[k].center for k in chosen])
+    if float(np.linalg.norm(places - places[0], axis=1).max()) < PLACES_APART * distance:
+        return None
     middle = offset * normal + float(np.mean(gu)) * u + float(np.mean(gv)) * v
     rays = np.array([middle - cameras[k].center for k in chosen])
     facing = np.abs(rays @ normal) / np.linalg.norm(rays, axis=1)

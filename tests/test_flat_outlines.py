@@ -8,6 +8,7 @@ the window, as a photo that clipped the window shows it.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from gaslight_usd.cameras import PinholeCamera
 from gaslight_usd.flat_outlines import (
@@ -275,6 +276,31 @@ def test_one_views_panel_lies_at_the_depth_two_views_agreed_on_for_the_ceiling()
     assert len(found) == 1
     np.testing.assert_allclose(found[0].centre, second, atol=0.02)
     np.testing.assert_allclose(found[0].half_size, PANEL_HALF, atol=0.03)
+
+
+def test_a_panel_seen_from_one_place_lies_at_the_depth_views_from_two_agreed_on():
+    """A second panel framed by a photo and its darker frame, shot from one place: their
+    outlines of it (the photo's clipped halo, the frame's panel) coincide at no depth and
+    every depth alike, so it takes the depth the five views sharing the first panel
+    swept the ceiling to, not one the pair's differing outlines pick by chance."""
+    from scipy import ndimage
+
+    second = np.array([1.6, 3.0, 1.6])
+    shared = [look_at(c, PANEL_CENTRE) for c in
+              ([0.5, 1.4, 0.5], [1.0, 1.5, -1.0], [0.2, 1.3, -2.0], [1.5, 1.6, 0.0],
+               [0.8, 1.2, -0.2])]
+    alone = look_at([0.2, 1.4, 0.2], second)
+    cams = [*shared, alone, alone]
+    halo = ndimage.binary_dilation(panel_mask(alone, second), iterations=3)
+    masks = [panel_mask(c) for c in shared] + [halo, panel_mask(alone, second)]
+    planes = [(np.array([0.0, -1.0, 0.0]), -2.9)] + PLANES[2:]
+    outlines = [o for o in plane_outlines(planes, cams, masks) if o.normal[1] < -0.9]
+    first = [o for o in outlines if o.holds(PANEL_CENTRE, 0.1)]
+    found = [o for o in outlines if o.holds(second, 0.1)]
+    assert len(first) == 1 and len(found) == 1
+    assert abs(first[0].centre[1] - 3.0) < 0.03
+    assert found[0].centre[1] == pytest.approx(first[0].centre[1], abs=1e-9)
+    np.testing.assert_allclose(found[0].centre[[0, 2]], second[[0, 2]], atol=0.05)
 
 
 def test_one_views_outline_is_a_light_where_the_fit_drew_its_light_on_the_plane():
