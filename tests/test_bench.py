@@ -414,7 +414,7 @@ def test_chain_scores_a_sunlit_patch_like_a_light():
 
     lights = [{"name": "window", "kind": "rectangle", "center": [2.5, 1.6, 0.2]}]
     assert [t["name"] for t in dark_frame_targets({**info, "lights": lights})] == [
-        "window", "sun_patch"]
+        "window", "sun_patch", "sun_patch"]  # twice: two places pin the floor's depth
     position = np.array([0.0, 0.6, 0.45])
     dirs = latlong_directions(256, 128)
     t = -position[1] / np.minimum(dirs[..., 1], -1e-9)

@@ -142,3 +142,47 @@ def test_the_starts_splats_on_the_floor_are_discs_lying_on_it():
     axes = quat_to_rotmat(torch.as_tensor(quat[None], dtype=torch.float64))[0].numpy()
     np.testing.assert_allclose(axes[:, 2], found.normal, atol=1e-9)
     assert floor_discs(points, None, 0.005)[0].size == 0
+
+
+def floor_radiance(cam) -> np.ndarray:
+    """(H, W) radiance the view sees: the patch at 50, the floor round it lit less the
+    farther from it (3 at its edge, falling by e over 0.3 m), the walls at 0.3."""
+    dirs = cam.ray_directions()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -cam.center[1] / np.where(dirs[..., 1] < -1e-6, dirs[..., 1], np.nan)
+        hit = cam.center + dirs * t[..., None]
+    xz = np.nan_to_num(hit[..., [0, 2]], nan=1e3)
+    gap = np.linalg.norm(np.maximum(np.maximum(PATCH[0] - xz, xz - PATCH[1]), 0.0), axis=-1)
+    floor = np.where(gap == 0.0, 50.0, 3.0 * np.exp(-gap / 0.3))
+    return np.where(np.isfinite(t), floor, 0.3)
+
+
+def test_two_darker_frames_are_swept_alone_one_falls_back_to_every_view():
+    """Photos exposed for the room clip the patch and as much of the lit floor round it
+    as passed each one's white (0.5-1.6): outlines of different sizes. Two darker frames
+    aimed at the patch from two places measure it whole, and the floor is swept on
+    theirs alone; one frame pins no depth, and every view's outlines are swept."""
+    from gaslight_usd.fit.lit_floor import views_lit_floor
+
+    cams = cameras()
+    weights = np.array([0.2126, 0.7152, 0.0722])
+    whites = [0.5, 0.8, 1.6, 0.6, 1.0, 1.2]
+    radiance = [floor_radiance(c) for c in cams]
+    photos = [np.repeat(np.minimum(r, w)[..., None], 3, 2).astype(np.float32)
+              for r, w in zip(radiance, whites, strict=True)]
+    floors = [np.where(r >= w, w, 0.0).astype(np.float32)
+              for r, w in zip(radiance, whites, strict=True)]
+    points = wall_points(np.random.default_rng(3))
+    frames = [cams[0], cams[3]]  # two darker frames, beside the first and fourth photos
+    dark = [np.repeat(radiance[k][..., None], 3, 2).astype(np.float32) for k in (0, 3)]
+    views, images = cams + frames, photos + dark
+    found = views_lit_floor(views, images, floors + [None, None], [False] * 6 + [True] * 2,
+                            weights, UP, points)
+    assert found is not None and abs(found.offset) < 0.02
+    assert not found.seen[:6].any() and found.seen[6:].all(axis=0).mean() > 0.9
+    inside = ((found.points[:, [0, 2]] >= PATCH[0] - 0.03)
+              & (found.points[:, [0, 2]] <= PATCH[1] + 0.03)).all(1)
+    assert inside.all()  # the patch, not the lit floor round it
+    one = views_lit_floor(views[:7], images[:7], floors + [None], [False] * 6 + [True],
+                          weights, UP, points)
+    assert one is not None and one.seen[:6].any()

@@ -196,9 +196,12 @@ def lit_regions(info: dict[str, Any]) -> list[dict[str, Any]]:
 
 def dark_frame_targets(info: dict[str, Any]) -> list[dict[str, Any]]:
     """What the README's capture aims a darker frame at: each light, and each bright
-    surface every photo clips (a sunlit patch lights the room as a lamp does, and only a
-    frame that measured it pins its power)."""
-    return scene_lights(info) + lit_regions(info)
+    surface every photo clips, twice, from two places (a sunlit patch lights the room as
+    a lamp does, and only a frame that measured it pins its power; a plain floor holds
+    no sparse point, and only two such frames' outlines of the patch pin its depth:
+    :mod:`gaslight_usd.fit.lit_floor`)."""
+    regions = lit_regions(info)
+    return scene_lights(info) + regions + regions
 
 
 def light_cone(light: dict[str, Any], position: np.ndarray) -> tuple[np.ndarray, float]:

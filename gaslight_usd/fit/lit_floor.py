@@ -15,9 +15,10 @@ well under the sweep's typical disagreement
 none: nothing agrees anywhere under the cameras.
 
 Photos' clipped outlines mostly disagree at every height (each holds whatever passed
-that photo's white, more of it the longer the exposure), so from photos, darker frames
-included, a floor is seldom found: it is found from views that measured the patch (true
-HDR views, merged brackets).
+that photo's white, more of it the longer the exposure), so from photos a floor is seldom
+found: it is found from views that measured the patch (true HDR views, merged brackets),
+and from two darker frames aimed at it from two places, swept alone
+(:func:`views_lit_floor`; one frame pins no depth).
 
 The fit's start puts the patch and the floor round it on it
 (:func:`gaslight_usd.fit.init.surface_fill_points`: a pixel takes the depth the patch's
@@ -38,7 +39,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..cameras import PinholeCamera
-from ..flat_outlines import LIT_SHARE, MIN_CELLS, MIN_VIEWS, look_up
+from ..flat_outlines import LIT_SHARE, MIN_CELLS, MIN_VIEWS, lit_masks, look_up
 from .init import depth_rays
 from .planes import INLIER_SHARE, OWN_TILT, UP_TILT, Plane, main_axes
 
@@ -205,6 +206,30 @@ def find_lit_floor(cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | 
         return None
     return LitFloor(normal=up, offset=float(fine[pick]), points=cells, seen=seen,
                     disagreement=score, cell=CELL_SHARE * spread / 2)
+
+
+def views_lit_floor(cameras: Sequence[PinholeCamera], images: Sequence[np.ndarray],
+                    floors: Sequence[np.ndarray | None], measuring: Sequence[bool],
+                    weights: np.ndarray, up: np.ndarray, points: np.ndarray
+                    ) -> LitFloor | None:
+    """:func:`find_lit_floor` from the views (``images`` (H, W, 3) linear, their clip
+    ``floors``, None where nothing clipped): first from those ``measuring`` light over the
+    photos' white alone (darker frames: the light is what stands over each one's median,
+    its few clipped pixels included), where :data:`MIN_VIEWS` of them do, then from every
+    view's lit outlines (:func:`gaslight_usd.flat_outlines.lit_masks`). From the README's
+    capture the photos' clipped outlines of a sunlit patch hold the floor round it that
+    passed each one's white and disagree at every height (``sun:5``: 0.64 at the floor,
+    0.64-0.78 within 0.6 m of it: no floor), and the fit drew the patch smeared from 0.7 m
+    under the floor to 0.45 m over it; two frames aimed at it from two places agree at
+    the floor (0.16, found 2 cm under it) (``docs/measurements.md``, session 57)."""
+    if sum(bool(m) for m in measuring) >= MIN_VIEWS:
+        masks = lit_masks(images, [None] * len(images), weights)
+        found = find_lit_floor(cameras, [mask if m else None
+                                         for mask, m in zip(masks, measuring, strict=True)],
+                               up, points)
+        if found is not None:
+            return found
+    return find_lit_floor(cameras, lit_masks(images, floors, weights), up, points)
 
 
 def floor_plane(floor: LitFloor | None, box: Sequence[Plane], points: np.ndarray

@@ -66,7 +66,7 @@ from .light_seeds import (
     measured_light_seeds,
     seed_points,
 )
-from .lit_floor import FLAT, LitFloor, find_lit_floor, floor_discs, floor_plane, room_vertical
+from .lit_floor import FLAT, LitFloor, floor_discs, floor_plane, room_vertical, views_lit_floor
 from .losses import elongation_penalty, fit_loss, held_out_errors
 from .model import SplatModel
 from .planes import (
@@ -242,11 +242,12 @@ class Trainer:
         """The floor the training views' lit patch pins (:mod:`.lit_floor`), where the
         sparse points miss it."""
         points = np.asarray(self._init_model().points, np.float64)
-        masks = lit_masks([self.data.images[i] for i in self.train],
-                          [self.data.floor(i) for i in self.train],
-                          self.y_weights.cpu().numpy())
         vertical = room_vertical(points, up, np.random.default_rng([self.seed, 13]))
-        return find_lit_floor(cams, masks, vertical, points)
+        measuring = set(self.data.measures_highlights())
+        return views_lit_floor(cams, [self.data.images[i] for i in self.train],
+                               [self.data.floor(i) for i in self.train],
+                               [i in measuring for i in self.train],
+                               self.y_weights.cpu().numpy(), vertical, points)
 
     def _init_model(self):
         """The poses' model, with points triangulated from the views when it has none
