@@ -71,6 +71,9 @@ class Panel:
     the splats' spread."""
     single_view: bool = False
     """...by one view alone (:attr:`gaslight_usd.flat_outlines.Outline.single_view`)."""
+    measured_sides: int = 0
+    """...with this many sides where a view that measured the light sees it end
+    (:attr:`gaslight_usd.flat_outlines.Outline.measured_sides`)."""
 
     @property
     def area(self) -> float:
@@ -160,7 +163,7 @@ def outlined_panel(outline: Outline, median_depth: float, plane_offset: float = 
     return Panel(centre=outline.centre + NUDGE_SHARE * median_depth * normal,
                  normal=normal.copy(), u=outline.u.copy(), v=np.cross(outline.u, normal),
                  half_size=outline.half_size.copy(), plane_offset=plane_offset, outlined=True,
-                 single_view=outline.single_view)
+                 single_view=outline.single_view, measured_sides=outline.measured_sides)
 
 
 def drawn_on_outline(positions: np.ndarray, power: np.ndarray, outline: Outline,

@@ -8,6 +8,7 @@ front of the wall, and a halo round its edge; the fit's backdrop is the last spl
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 from test_flat_outlines import look_at as outlines_look_at
 from test_flat_outlines import window_mask
@@ -228,3 +229,47 @@ def test_a_light_one_view_outlined_takes_its_reading_though_the_sums_say_less():
     assert plain.panels[0]["level_from"] == "splats"
     assert single.panels[0]["level_from"] == "views"
     assert abs(single.panels[0]["radiance"] / float(4.0 * true_rgb @ WEIGHTS) - 1.0) < 0.01
+
+
+def test_a_rectangle_the_measuring_views_set_every_side_of_takes_their_reading():
+    """Where the views that measured the light set all four sides of its rectangle, the
+    rectangle is the light's, not a clipped halo: their reading is its level though the
+    fit's blobs sum to less (the hall's window, drawn 0.2 stops dim by its splats)."""
+    from dataclasses import replace
+
+    scene, window, tail = scene_with_window()
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    true_rgb = np.array([9.0, 10.0, 11.0])
+    bright = [4.0 * np.where(window_mask(c)[..., None], true_rgb, 0.3).astype(np.float32)
+              for c in cams]
+    kwargs = dict(white=1.0, median_depth=2.5, weights=WEIGHTS, tail=tail, images=bright,
+                  floors=[None] * len(cams))
+    _, sides = redraw_flat_lights(scene, [replace(panel(), measured_sides=4)], [window], cams,
+                                  **kwargs)
+    _, three = redraw_flat_lights(scene, [replace(panel(), measured_sides=3)], [window], cams,
+                                  **kwargs)
+    assert sides.panels[0]["level_from"] == "views"
+    assert abs(sides.panels[0]["radiance"] / float(4.0 * true_rgb @ WEIGHTS) - 1.0) < 0.01
+    assert three.panels[0]["level_from"] == "splats"
+
+
+def test_a_view_that_saw_the_window_near_its_black_does_not_read_it():
+    """A frame exposed far down for a bulb sees the room's window at a few codes over its
+    black, where 8-bit steps are tens of per cent (it read the window 0.25 stops over);
+    with its dark ceiling known (its photo's code 3), its reading is left out and the
+    window's own frame reads it."""
+    from gaslight_usd.fit.flat_redraw import DARK_MARGIN, rectangle_reading
+
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3])]
+    true_rgb = np.array([9.0, 10.0, 11.0])
+    level = float(true_rgb @ WEIGHTS)
+    images = [np.where(window_mask(c)[..., None], scale * true_rgb, 0.3).astype(np.float32)
+              for c, scale in zip(cams, (1.0, 1.19), strict=True)]
+    black = level / (DARK_MARGIN / 2)  # the bulb's frame: the window 3 stops over its black
+    ceilings = [None, np.where(window_mask(cams[1]), 0.0, black).astype(np.float32)]
+    args = (panel(), cams, images, [None, None], WEIGHTS, 1.0)
+    both = rectangle_reading(*args)
+    assert both is not None and both[0] == pytest.approx(1.095 * level, rel=1e-3)
+    alone = rectangle_reading(*args, ceilings)
+    assert alone is not None and alone[0] == pytest.approx(level, rel=1e-3)

@@ -13,7 +13,10 @@ bright ones round its edge, are replaced by a grid of flat, opaque splats on the
 rectangle, one colour, at the level that keeps what the training views draw (their sums
 over the views that frame it, solved in closed form: the grid is opaque, so a view's sum
 is linear in its level), or the level the views that measured it read inside it where
-that is lower, in their colour (:func:`rectangle_reading`). Each overshoots in its way: the
+that is lower or where those views set every side of the rectangle (it is then the
+light's, not a clipped halo: the fit's sums drew the hall's window 0.2 stops dim), in
+their colour (:func:`rectangle_reading`; a view too near its black to read it is left
+out). Each overshoots in its way: the
 fit's blobs draw a window 0.1-0.3 stops over what the views read (true HDR views), and
 the views' reading over a rectangle the clipped photos outlined too large (their halo
 round a ceiling panel, +40 % in area) puts too much light in it (``docs/measurements.md``,
@@ -71,6 +74,11 @@ SAMPLES = 24
 INSET = 0.2
 """...kept this share of its half-size in from each edge: its blurred border, and the
 outline's few per cent of slack, are the wall's."""
+DARK_MARGIN = 16.0
+"""A view reads the rectangle only where it is over this many times the luminance the
+view's photo crushed to black (its dark ceiling's top: code 3 of 255), about code 32,
+where 8-bit steps are a few per cent: a frame exposed 12.7 stops down for a bulb saw its
+room's window at codes 3-4 and read it 0.25 stops over."""
 LAMP_RATIO = 4.0
 """Another light in front of the rectangle is a lamp, and stays, where its splats' median
 is over this many times the redrawn level (a lamp is hundreds of times a window; the
@@ -123,13 +131,16 @@ def _view_sums(scene: SplatScene, cameras: Sequence[PinholeCamera], weights: np.
 
 
 def rectangle_reading(panel: Panel, cameras: Sequence[PinholeCamera],
-                   images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
-                   weights: np.ndarray, white: float) -> tuple[float, np.ndarray] | None:
+                      images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
+                      weights: np.ndarray, white: float,
+                      ceilings: Sequence[np.ndarray | None] | None = None
+                      ) -> tuple[float, np.ndarray] | None:
     """(luminance, chroma (3,)) the views read inside ``panel`` (its middle, :data:`INSET`
     in from each edge, off its blurred border): per view that frames it whole, clipped
-    nothing there and read it over twice the ``white``, the mean of those pixels; the
-    median over such views (one a lamp or a plant stood in front of is outvoted). None
-    where no view measured it whole."""
+    nothing there and read it over twice the ``white`` and :data:`DARK_MARGIN` times its
+    photo's black (the top of its dark ``ceilings``, None: it crushed nothing), the mean
+    of those pixels; the median over such views (one a lamp or a plant stood in front of
+    is outvoted). None where no view measured it whole."""
     n = SAMPLES
     a = (np.arange(n) + 0.5) / n * 2.0 - 1.0
     aa, bb = np.meshgrid(a, a, indexing="ij")
@@ -137,7 +148,9 @@ def rectangle_reading(panel: Panel, cameras: Sequence[PinholeCamera],
     points = (panel.centre + (aa.reshape(-1, 1) * panel.half_size[0] * scale) * panel.u
               + (bb.reshape(-1, 1) * panel.half_size[1] * scale) * panel.v)
     means = []
-    for cam, image, floor in zip(cameras, images, floors, strict=True):
+    blacks = [0.0 if c is None else float(np.max(c))
+              for c in (ceilings if ceilings is not None else [None] * len(images))]
+    for cam, image, floor, black in zip(cameras, images, floors, blacks, strict=True):
         if float((cam.center - panel.centre) @ panel.normal) <= 0:
             continue
         x, y, inside = cam.pixels_of(points, image.shape)
@@ -146,7 +159,7 @@ def rectangle_reading(panel: Panel, cameras: Sequence[PinholeCamera],
         if floor is not None and bool((np.asarray(floor)[y, x] > 0).any()):
             continue
         rgb = np.asarray(image, np.float64)[y, x].mean(axis=0)
-        if float(rgb @ weights) > 2.0 * white:
+        if float(rgb @ weights) > max(2.0 * white, DARK_MARGIN * black):
             means.append(rgb)
     if not means:
         return None
@@ -184,10 +197,11 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     level = float((before - dark).sum() / unit.sum()) if float(unit.sum()) > 0 else np.nan
     # the lower of the two: the views' reading over a rectangle the clipped photos
     # outlined too large (their halo) overshoots, and so do the fit's blobs where the
-    # rectangle is right (module docstring)
+    # rectangle is right (module docstring); the reading where the measuring views set
+    # every side
     source = "splats"
-    if measured is not None and (panel.single_view or not (np.isfinite(level)
-                                                           and 0 < level < measured[0])):
+    if measured is not None and (panel.single_view or panel.measured_sides >= 4
+                                 or not (np.isfinite(level) and 0 < level < measured[0])):
         level, source = measured[0], "views"
     if not np.isfinite(level) or level <= 0:
         return None
@@ -211,7 +225,8 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
                        white: float, median_depth: float, weights: np.ndarray,
                        tail: int = 0, other_lights: Sequence[np.ndarray] = (),
                        images: Sequence[np.ndarray] | None = None,
-                       floors: Sequence[np.ndarray | None] | None = None
+                       floors: Sequence[np.ndarray | None] | None = None,
+                       ceilings: Sequence[np.ndarray | None] | None = None
                        ) -> tuple[SplatScene, Redrawn]:
     """``scene`` with each of ``panels`` (the rectangle of the light whose splats are
     ``light_splats``) redrawn as a flat, even emitter (module docstring), at the level
@@ -219,7 +234,8 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
     (what is over it is bright); ``weights``: luminance weights; ``tail``: the last
     splats (the fit's backdrop) are never replaced and stay last; ``images`` and
     ``floors``: the ``cameras``' HDR views and clip floors, whose reading inside the
-    rectangle sets its level where one measured it (:func:`rectangle_reading`)."""
+    rectangle sets its level where one measured it (:func:`rectangle_reading`; their
+    dark ``ceilings`` say where a view is too dark to read)."""
     report = Redrawn()
     weights = np.asarray(weights, np.float64)
     owns = [np.asarray(own, np.int64) for own in light_splats]
@@ -253,8 +269,8 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
             replace[len(replace) - tail:] = False
         measured = (None if images is None else
                     rectangle_reading(panel, cameras, images,
-                                   floors if floors is not None else [None] * len(images),
-                                   weights, white))
+                                      floors if floors is not None else [None] * len(images),
+                                      weights, white, ceilings))
         solved = _solve(scene, panel, replace, colours, radiance, white, median_depth, views,
                         weights, tail, measured)
         if solved is None:

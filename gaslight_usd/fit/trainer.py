@@ -739,7 +739,8 @@ class Trainer:
             return scene, Redrawn()
         scene, redrawn = redraw_flat_lights(
             scene, [p for p, _ in pairs], [i for _, i in pairs], views, search.white, depth,
-            weights, tail=backdrop, other_lights=others, images=images, floors=floors)
+            weights, tail=backdrop, other_lights=others, images=images, floors=floors,
+            ceilings=[self.data.ceiling(i) for i in self.train])
         if redrawn.panels:
             self.progress.message(f"redrew {len(redrawn.panels)} window(s) or panel(s) as "
                                   "flat emitters on their rectangles")
