@@ -223,10 +223,9 @@ def views_lit_floor(cameras: Sequence[PinholeCamera], images: Sequence[np.ndarra
     under the floor to 0.45 m over it; two frames aimed at it from two places agree at
     the floor (0.16, found 2 cm under it) (``docs/measurements.md``, session 57)."""
     if sum(bool(m) for m in measuring) >= MIN_VIEWS:
-        masks = lit_masks(images, [None] * len(images), weights)
-        found = find_lit_floor(cameras, [mask if m else None
-                                         for mask, m in zip(masks, measuring, strict=True)],
-                               up, points)
+        masks = [lit_masks([image], [None], weights)[0] if m else None
+                 for image, m in zip(images, measuring, strict=True)]
+        found = find_lit_floor(cameras, masks, up, points)
         if found is not None:
             return found
     return find_lit_floor(cameras, lit_masks(images, floors, weights), up, points)
