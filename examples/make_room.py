@@ -75,6 +75,10 @@ WINDOW_RADIANCE = 12.0 * np.array([0.78, 0.88, 1.0])  # cool daylight
 LAMP_ON = True  # the variants may light the room without the pendant lamp
 CEILING_PANELS: list[dict[str, Any]] = []  # extra emitters: {"center", "half", "radiance"}
 SHADE: dict[str, Any] | None = None  # an open cylinder around the lamp: {"radius", "y0", "y1"}
+# where the frames from below a shaded lamp stand, from the bulb (metres): the README's
+# advice for a bulb in a shade ("Shooting the lights"), two frames from two places, whose
+# sight lines cross at the bulb; the shade's opening shows the bulb from both
+BELOW_OFFSETS = (np.array([0.3, -0.65, 0.2]), np.array([-0.25, -0.65, -0.25]))
 TEXTURE_GAIN = 1.0  # albedo scale of every texture (then clipped to [0.02, 0.9])
 SUN: dict[str, Any] | None = None  # a sun patch on the floor: {"min", "max", "radiance"}
 # ("radiance": the sunlight's irradiance / pi, times the floor's albedo)
@@ -696,6 +700,11 @@ def camera_rig() -> list[Camera]:
             + camera_pitched(N_DOWN_VIEWS, -35.0, (1.2, 0.8), 1.6, 0.5))
 
 
+def below_cameras() -> list[Camera]:
+    """The frames from below a shaded lamp, looking up at its bulb through the opening."""
+    return [look_at(LAMP_CENTER + offset, LAMP_CENTER) for offset in BELOW_OFFSETS]
+
+
 def rot_to_quat(r: np.ndarray) -> np.ndarray:
     """Rotation matrix -> unit quaternion (w, x, y, z) with w >= 0."""
     m = r
@@ -1014,20 +1023,28 @@ def sha256(path: Path) -> str:
 def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
     """Render and write the whole example folder.
 
+    A variant with a shaded lamp also gets ``extra/below_00.exr`` and ``below_01.exr``:
+    the true radiance of two frames from below the lamp (:func:`below_cameras`), no
+    photos; ``scene.json``'s ``extra_views`` poses them. They are not among the photos:
+    the chain bench makes the darker frames the README's capture adds for the bulb from
+    them (``gaslight_usd/bench/dark_frames.py``).
+
     ``only`` names the views and probes to render (file stems: ``view_03``,
-    ``probe_1``); every pixel's samples depend on its view's index alone, so
+    ``probe_1``, ``below_00``); every pixel's samples depend on its view's index alone, so
     each comes out as in a whole run. A partial run writes those files, the
     poses and their digests, not ``scene.json`` (its view list would be short).
     """
     if only is not None:  # before any folder is made: a wrong name leaves nothing behind
         names = {f"view_{i:02d}" for i in range(len(camera_rig()))} | {
-            f"probe_{k}" for k in range(len(PROBE_POSITIONS))}
+            f"probe_{k}" for k in range(len(PROBE_POSITIONS))} | (
+            {f"below_{j:02d}" for j in range(len(BELOW_OFFSETS))} if SHADE is not None
+            else set())
         if only - names:
             raise SystemExit(f"--only: no view or probe named {', '.join(sorted(only - names))}")
     t_start = time.perf_counter()
     variant = init_mitsuba()
     log(f"mitsuba {mi.__version__}, variant {variant}, seed {seed}, out {out}")
-    for sub in ("photos", "truth", "sparse/0", "probes"):
+    for sub in ("photos", "truth", "sparse/0", "probes") + (("extra",) if SHADE else ()):
         (out / sub).mkdir(parents=True, exist_ok=True)
 
     rng = np.random.default_rng(seed)
@@ -1089,6 +1106,19 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
         )
         log(f"  {name}: {time.perf_counter() - ti:.1f} s, ExposureTime {exposure:.6g} s")
     timings["views_s"] = time.perf_counter() - t0
+    extra_views = []
+    for j, cam in enumerate(below_cameras() if SHADE is not None else []):
+        name = f"below_{j:02d}"
+        if only is not None and name not in only:
+            continue
+        radiance = renderer.pinhole(cam, len(cams) + j, SPP)
+        write_image(out / "extra" / f"{name}.exr", radiance,
+                    exr_attrs("true radiance of a frame from below the shaded lamp (no "
+                              "photo: a darker frame is made from it)"), oiio.HALF)
+        extra_views.append({"name": f"{name}.jpg", "truth": f"extra/{name}.exr",
+                            "aimed_at": "lamp", "centre": cam.centre.tolist(),
+                            "qvec": rot_to_quat(cam.w2c).tolist(), "tvec": cam.t.tolist()})
+        log(f"  {name}: a frame from below the shade")
 
     t0 = time.perf_counter()
     probes = []
@@ -1233,6 +1263,8 @@ def generate(out: Path, seed: int, only: set[str] | None = None) -> None:
                         "floor's albedo x irradiance_over_pi): a lit surface the photos "
                         "clip, not one of the lights",
             }
+        if extra_views:
+            scene["extra_views"] = extra_views
         if not LAMP_ON:
             scene.pop("lamp")
             scene["measured"].pop("lamp_to_median_ratio")
@@ -1266,7 +1298,8 @@ def write_digests(out: Path) -> int:
 
 def _is_generated(out: Path, p: Path) -> bool:
     rel = p.relative_to(out).as_posix()
-    return rel.split("/")[0] in ("photos", "truth", "sparse", "probes") or rel == "scene.json"
+    return (rel.split("/")[0] in ("photos", "truth", "sparse", "probes", "extra")
+            or rel == "scene.json")
 
 
 # --------------------------------------------------------------------------- verification
@@ -1425,7 +1458,8 @@ def main(argv: list[str] | None = None) -> int:
                     "smaller renders of other lights and albedos for the chain bench)")
     ap.add_argument("--only", metavar="NAMES",
                     help="render only these views and probes (comma-separated stems, e.g. "
-                    "view_03,probe_1) with the poses, to check that they come out as "
+                    "view_03,probe_1; below_00: the shaded room's frames from below) with "
+                    "the poses, to check that they come out as "
                     "committed; no scene.json, no --verify")
     args = ap.parse_args(argv)
     apply_variant(args.variant)

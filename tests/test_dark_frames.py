@@ -101,3 +101,51 @@ def test_extra_dark_frames_are_added_beside_their_photos_and_posed_as_them(tmp_p
         np.testing.assert_allclose(cams[name].center, cams[what["of"]].center, atol=1e-9)
         np.testing.assert_allclose(cams[name].R, cams[what["of"]].R, atol=1e-9)
         assert cams[name].fx == cams[what["of"]].fx
+
+
+def scene_with_extra_view(tmp_path):
+    """The example with one extra view aimed at its lamp (a copy of the truth and pose of
+    the photo that frames the lamp best, under another name), as ``make_room.py`` poses
+    its frame from below a shaded lamp."""
+    from gaslight_usd.bench.dark_frames import light_view
+    from gaslight_usd.cameras import matrix_to_quaternion
+
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    for sub in ("photos", "truth", "sparse"):
+        (folder / sub).symlink_to(EXAMPLE / sub)
+    info = json.loads((EXAMPLE / "scene.json").read_text())
+    lamp = next(li for li in scene_lights(info) if li["name"] == "lamp")
+    cams = read_poses(EXAMPLE / "sparse" / "0").cameras
+    cam = light_view(cams, np.asarray(lamp["center"]), set())
+    (folder / "extra").mkdir()
+    (folder / "extra" / "below_00.exr").symlink_to(
+        EXAMPLE / "truth" / cam.name.replace(".jpg", ".exr"))
+    info["extra_views"] = [{"name": "below_00.jpg", "truth": "extra/below_00.exr",
+                            "aimed_at": "lamp",
+                            "qvec": matrix_to_quaternion(cam.R).tolist(),
+                            "tvec": cam.t.tolist()}]
+    (folder / "scene.json").write_text(json.dumps(info))
+    return folder, info, lamp, cam
+
+
+def test_a_light_no_photo_shows_gets_its_frame_from_the_scenes_extra_view(tmp_path):
+    """A shaded lamp's frame from below is no photo's re-exposure: it is made from the
+    scene's extra view, exposed for the light, and posed where that view was rendered."""
+    folder, info, lamp, cam = scene_with_extra_view(tmp_path)
+    chosen = dark_frame_photos(folder, tmp_path / "photos", scene_lights(info), extra=True)
+    name = f"below_00{DARK_SUFFIX}.jpg"
+    assert chosen[name]["light"] == "lamp" and chosen[name]["of"] is None
+    assert sorted(c["light"] for c in chosen.values()) == ["lamp", "lamp", "window"]
+    photo = read_image(tmp_path / "photos" / name)
+    ((u, v),), _ = cam.project(np.array([lamp["center"]]))
+    patch = photo.pixels[int(v) - 3:int(v) + 4, int(u) - 3:int(u) + 4]
+    assert 0.3 < patch.max() < 0.99  # exposed for the lamp: measured, not clipped
+    model = read_poses(poses_with_dark_frames(folder, chosen, tmp_path / "sparse"))
+    posed = {c.name: c for c in model.cameras}[name]
+    np.testing.assert_allclose(posed.R, cam.R, atol=1e-9)
+    np.testing.assert_allclose(posed.center, cam.center, atol=1e-9)
+    assert len(set(model.image_ids)) == len(model.cameras)
+    # the in-place capture replaces photos; a frame no photo was taken from is not one
+    in_place = dark_frame_photos(folder, tmp_path / "in_place", scene_lights(info))
+    assert name not in in_place

@@ -35,8 +35,11 @@ def inside_box(points: np.ndarray, centre, half, yaw_deg: float, margin: float) 
 
 
 def standing_points(m) -> dict[str, np.ndarray]:
-    return {"cameras": np.array([c.centre for c in m.camera_rig()]),
-            "probes": np.asarray(m.PROBE_POSITIONS, np.float64)}
+    points = {"cameras": np.array([c.centre for c in m.camera_rig()]),
+              "probes": np.asarray(m.PROBE_POSITIONS, np.float64)}
+    if m.SHADE is not None:  # the frames from below the shaded lamp
+        points["below"] = np.array([c.centre for c in m.below_cameras()])
+    return points
 
 
 @pytest.mark.parametrize("variant", ["room", "bulb", "panels", "shade", "sun", "hall"])
@@ -83,3 +86,42 @@ def test_lights_sit_on_the_room(variant):
     for name, (centre, radius) in m.balls().items():
         dist = np.linalg.norm(grid[:, [0, 2]] - np.asarray(centre)[[0, 2]], axis=1)
         assert (dist > radius).all(), f"sun patch under the {name}"
+
+
+def test_the_frames_from_below_a_shade_see_its_bulb_through_the_opening():
+    """The shaded room's extra views (the README's two frames from below): the bulb lies
+    in their frames, the sight lines to the bulb's near half pass the shade's open bottom,
+    not its wall, and the two look at it from 30 degrees apart or more; of the photos that
+    frame the bulb none sees more than a sliver of it (why the frames are needed)."""
+    m = load_variant("shade")
+    fx, fy, cx, cy = m.intrinsics()
+
+    def frames_bulb(cam, margin: float) -> bool:
+        local = cam.w2c @ (m.LAMP_CENTER - cam.centre)
+        u, v = fx * local[0] / local[2] + cx, fy * local[1] / local[2] + cy
+        return bool(local[2] > 0 and margin * m.WIDTH < u < (1 - margin) * m.WIDTH
+                    and margin * m.HEIGHT < v < (1 - margin) * m.HEIGHT)
+
+    below = m.below_cameras()
+    assert len(below) == 2 and all(frames_bulb(cam, 0.25) for cam in below)
+    rays = [(cam.centre - m.LAMP_CENTER) / np.linalg.norm(cam.centre - m.LAMP_CENTER)
+            for cam in below]
+    assert math.degrees(math.acos(float(rays[0] @ rays[1]))) > 30
+    rng = np.random.default_rng(0)
+    dirs = rng.normal(size=(400, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+
+    def through_opening(eye: np.ndarray) -> np.ndarray:
+        """Per bulb point facing ``eye``: its sight line crosses the opening's plane
+        inside the shade's radius."""
+        points = m.LAMP_CENTER + m.LAMP_RADIUS * dirs
+        points = points[np.einsum("ij,ij->i", eye - points, dirs) > 0]
+        y0 = m.SHADE["y0"]
+        s = (y0 - points[:, 1]) / (eye[1] - points[:, 1])
+        cross = points + s[:, None] * (eye - points)
+        off = np.linalg.norm((cross - m.LAMP_CENTER)[:, [0, 2]], axis=1)
+        return (s > 0) & (off < m.SHADE["radius"])
+
+    assert all(through_opening(cam.centre).all() for cam in below)
+    framing = [c for c in m.camera_rig() if frames_bulb(c, 0.0)]
+    assert framing and all(through_opening(c.centre).mean() < 0.05 for c in framing)

@@ -18,6 +18,10 @@ of the room round the light. The README's advice is an *extra* frame from a
 neighbouring photo's position: with ``extra`` the darker frame is written beside the
 photo it was made from (``<stem>_dark.jpg``, :data:`DARK_SUFFIX`) and posed as that
 photo (:func:`poses_with_dark_frames`), the method "recursive + extra dark frames".
+A light no photo's position shows (a bulb inside a shade, which the README says to shoot
+from below) gets its frame from a view the scene renders for it and no photo has
+(``scene.json``'s ``extra_views``: ``examples/make_room.py`` renders one below a shaded
+lamp), posed where it was rendered.
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from ..atomic import atomic_path
+from ..cameras import quaternion_to_matrix
 from ..colour import convert
 from ..errors import GaslightError
 from ..imageio import read_header, read_image
@@ -165,6 +170,8 @@ def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]],
                         "stops": round(math.log2(given / t_was), 2),
                         "shutter_s": shutter, "f_number": round(aperture, 2),
                         "still_clips": given > wanted * 1.001, "of": cam.name}
+    if extra:
+        chosen |= _frames_from_extra_views(folder, info, dst, lights, k_camera, f_number)
     for photo in sorted((folder / "photos").glob("*.jpg")):
         link = dst / photo.name
         if photo.name not in chosen and not link.exists():
@@ -173,21 +180,59 @@ def dark_frame_photos(folder: Path, dst: Path, lights: list[dict[str, Any]],
     return chosen
 
 
+def _frames_from_extra_views(folder: Path, info: dict[str, Any], dst: Path,
+                             lights: list[dict[str, Any]], k_camera: float, f_number: float
+                             ) -> dict[str, dict[str, Any]]:
+    """A darker frame from each of the scene's ``extra_views`` aimed at one of ``lights``
+    (a view from below a shaded lamp), exposed for that light; per frame what
+    :func:`dark_frame_photos` records, with the view's pose (``qvec``, ``tvec``) in place
+    of the photo it was made from (``of``: None)."""
+    names = {light["name"]: light for light in lights}
+    like = sorted((folder / "photos").glob("*.jpg"))
+    template = read_poses(folder / "sparse" / "0").cameras[0]
+    chosen: dict[str, dict[str, Any]] = {}
+    for view in info.get("extra_views", []):
+        light = names.get(view.get("aimed_at"))
+        if light is None or not like:
+            continue
+        cam = replace(template, R=quaternion_to_matrix(np.asarray(view["qvec"], np.float64)),
+                      t=np.asarray(view["tvec"], np.float64), name=view["name"])
+        truth = read_image(folder / view["truth"]).pixels
+        uv, z = cam.project(np.asarray(light["center"], np.float64)[None])
+        if z[0] <= 0:
+            raise GaslightError(f"{view['name']}: aimed at the {light['name']}, which lies "
+                                "behind it")
+        wanted = dark_exposure(truth, uv[0], k_camera)
+        shutter, aperture = camera_settings(wanted, f_number)
+        name = Path(view["name"]).stem + DARK_SUFFIX + Path(view["name"]).suffix
+        write_photo(dst / name, truth, (shutter, aperture), k_camera, f_number, like[0])
+        given = shutter * (f_number / aperture) ** 2
+        chosen[name] = {"light": light["name"], "shutter_s": shutter,
+                        "f_number": round(aperture, 2), "still_clips": given > wanted * 1.001,
+                        "of": None, "qvec": list(view["qvec"]), "tvec": list(view["tvec"])}
+    return chosen
+
+
 def poses_with_dark_frames(folder: Path, chosen: dict[str, dict[str, Any]], out: Path
                            ) -> Path:
     """The scene's poses (``folder/sparse/0``) with each extra dark frame of ``chosen``
-    (:func:`dark_frame_photos` with ``extra``) posed as the photo it was made from,
-    written to ``out`` (a COLMAP model folder, returned)."""
+    (:func:`dark_frame_photos` with ``extra``) posed as the photo it was made from, or,
+    made from an extra view, at that view's pose; written to ``out`` (a COLMAP model
+    folder, returned)."""
     model = read_poses(folder / "sparse" / "0")
     by_name = {cam.name: k for k, cam in enumerate(model.cameras)}
     cameras, image_ids = list(model.cameras), list(model.image_ids)
     camera_ids = list(model.camera_ids)
     points2d = None if model.points2d is None else list(model.points2d)
     for name, what in chosen.items():
-        k = by_name.get(what["of"])
+        k = by_name.get(what["of"]) if what["of"] is not None else 0
         if k is None or name in by_name:
             continue
-        cameras.append(replace(model.cameras[k], name=name))
+        cam = replace(model.cameras[k], name=name)
+        if what["of"] is None:
+            cam = replace(cam, R=quaternion_to_matrix(np.asarray(what["qvec"], np.float64)),
+                          t=np.asarray(what["tvec"], np.float64))
+        cameras.append(cam)
         image_ids.append(max(image_ids) + 1)  # read_poses numbers every image
         camera_ids.append(camera_ids[k])
         if points2d is not None:

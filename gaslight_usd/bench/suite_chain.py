@@ -23,7 +23,9 @@ photos with the true poses (so the uplift and the fit are measured, not SfM), on
   (:mod:`.dark_frames`), the rest as shot; its unclipped light pixels are measurements,
   the other photos' clipped ones bounds;
 * ``recursive + extra dark frames`` -- the capture the README advises: those darker
-  frames added beside the photos they were made from (same pose), every photo kept;
+  frames added beside the photos they were made from (same pose), every photo kept,
+  and for a shaded lamp a darker frame from below, where the shade's opening shows its
+  bulb (the scene's ``extra_views``, which ``examples/make_room.py`` renders);
 * ``truth HDR, planes off``, ``recursive, planes on`` -- those fits with the planes'
   prior the other way round (``fit --planes off|on``; by default it is on where no view
   clipped, as in the true HDR views, and off for clipped photos).
