@@ -149,3 +149,21 @@ def test_a_light_no_photo_shows_gets_its_frame_from_the_scenes_extra_view(tmp_pa
     # the in-place capture replaces photos; a frame no photo was taken from is not one
     in_place = dark_frame_photos(folder, tmp_path / "in_place", scene_lights(info))
     assert name not in in_place
+
+
+def test_a_shaded_room_rendered_without_its_frames_from_below_is_rendered_again(tmp_path):
+    """The bench's scene cache: a shaded room from before the views from below lacks
+    them, and is rendered again rather than benched without them."""
+    from gaslight_usd.bench.suite_chain import lacks_frames_from_below
+
+    folder, info, _, _ = scene_with_extra_view(tmp_path)
+    info["lights"] = [dict(li, shaded=li["name"] == "lamp") for li in scene_lights(info)]
+    (folder / "scene.json").write_text(json.dumps(info))
+    assert not lacks_frames_from_below(folder)
+    (folder / "scene.json").write_text(json.dumps({k: v for k, v in info.items()
+                                                   if k != "extra_views"}))
+    assert lacks_frames_from_below(folder)
+    bare = {k: v for k, v in info.items() if k != "extra_views"}
+    bare["lights"] = [dict(li, shaded=False) for li in info["lights"]]
+    (folder / "scene.json").write_text(json.dumps(bare))
+    assert not lacks_frames_from_below(folder)  # no shade: nothing to shoot from below

@@ -159,7 +159,7 @@ def scene_dir(name: str, out: Path, progress=None) -> Path:
     if name == "room":
         return example_room()
     folder = out / "scenes" / (variant if seed is None else f"{variant}-{seed}")
-    if (folder / "digests.json").exists():
+    if (folder / "digests.json").exists() and not lacks_frames_from_below(folder):
         return folder
     script = find_data("examples/make_room.py")
     if not script.exists():
@@ -170,6 +170,15 @@ def scene_dir(name: str, out: Path, progress=None) -> Path:
     subprocess.run([sys.executable, str(script), *args, "--out", str(folder)],
                    check=True, stdout=subprocess.DEVNULL)
     return folder
+
+
+def lacks_frames_from_below(folder: Path) -> bool:
+    """A rendered room with a shaded lamp but no views from below it (``scene.json``'s
+    ``extra_views``): rendered by a ``make_room.py`` older than those views, so the
+    README's capture would go without them; :func:`scene_dir` renders it again."""
+    info = json.loads((folder / "scene.json").read_text())
+    shaded = any(light.get("shaded") for light in info.get("lights", []))
+    return shaded and not info.get("extra_views")
 
 
 def scene_lights(info: dict[str, Any]) -> list[dict[str, Any]]:
