@@ -46,19 +46,22 @@ def solve(ctx: StageContext) -> StageResult:
                       camera_height=opts.camera_height)
     if not model.frame["scale_known"]:
         ctx.progress.message(f"warning: {model.frame['units']}")
+    stats = dict(result.stats)
+    posed = stats.pop("posed_as_neighbour", {})
     model.frame["sfm"] = {"matcher": sfm_opts.matcher, "camera_model": sfm_opts.camera_model,
                           "registered": len(result.registered), "photos": len(result.photos),
-                          "unregistered": result.unregistered}
+                          "unregistered": result.unregistered, "posed_as_neighbour": posed}
     write_model(ctx.output, model, binary=bool(opts.binary))
     errors = model.point_errors
     return StageResult(
         metadata={"frame": {k: v for k, v in model.frame.items() if k != "sfm"},
-                  "unregistered": result.unregistered, "notes": model.notes},
+                  "unregistered": result.unregistered, "posed_as_neighbour": posed,
+                  "notes": model.notes},
         counts={"photos": len(result.photos), "registered": len(result.registered),
                 "images": len(model.cameras), "points": len(model.points)},
         metrics={"seconds_sfm": round(result.seconds, 3),
                  "mean_reprojection_error_px": float(errors.mean()) if len(errors) else None,
-                 **result.stats},
+                 **stats},
     )
 
 

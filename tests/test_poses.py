@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -240,11 +241,17 @@ def test_unrelated_photos_fail_naming_them(unrelated):
 @needs_example
 @pytest.mark.slow
 def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
-    """The bundled photos plus one unrelated photo: all of them register, the stray is named."""
+    """The bundled photos, the README's darker frames beside them and one unrelated
+    photo: all of them register, the stray is named; the bulb's frame, too dark for SfM,
+    takes the pose of the photo it was shot beside."""
+    from gaslight_usd.bench.dark_frames import dark_frame_photos
+    from gaslight_usd.bench.suite_chain import scene_lights
+
     photos = tmp_path / "photos"
-    photos.mkdir()
-    for p in sorted((EXAMPLE / "photos").glob("*.jpg")):
-        (photos / p.name).symlink_to(p)
+    chosen = dark_frame_photos(EXAMPLE, photos, scene_lights(json.loads(
+        (EXAMPLE / "scene.json").read_text())), extra=True)
+    lamp_frame = next(name for name, what in chosen.items() if what["light"] == "lamp")
+    assert chosen[lamp_frame]["stops"] < -8  # black but for the bulb
     rng = np.random.default_rng(1)
     _write_jpeg(photos / "zz_stray.jpg", rng.random((360, 480, 3)))
     out = tmp_path / "sparse"
@@ -254,9 +261,13 @@ def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
     truth = read_poses(EXAMPLE / "sparse" / "0")
-    assert report["registered"] == len(truth.cameras) == report["photos"] - 1
+    assert report["registered"] == len(truth.cameras) + 2 == report["photos"] - 1
     assert list(report["unregistered"]) == ["zz_stray.jpg"]
+    assert report["posed_as_neighbour"] == {lamp_frame: chosen[lamp_frame]["of"]}
     model = read_model(out)
+    posed, photo = model.camera(lamp_frame), model.camera(chosen[lamp_frame]["of"])
+    np.testing.assert_allclose(posed.R, photo.R, atol=1e-9)
+    np.testing.assert_allclose(posed.center, photo.center, atol=1e-9)
     assert model.frame["up_axis"] == "Y" and model.frame["frame_source"] == "sfm"
     scene = json.loads((EXAMPLE / "scene.json").read_text())
     size = float(np.linalg.norm(np.subtract(scene["room"]["max"], scene["room"]["min"])))
@@ -342,3 +353,33 @@ def test_triangulated_fit_start_is_the_same_every_run():
     first, second = triangulate_views(model, views), triangulate_views(model, views)
     assert first is not None and len(first.points) > 300
     np.testing.assert_array_equal(first.points, second.points)
+
+
+def test_only_a_much_darker_frame_beside_a_registered_photo_takes_its_pose(tmp_path):
+    """The rule of :mod:`gaslight_usd.poses.dark_frames` on photos SfM left out: a frame
+    7 stops darker than the registered photo before it (by file name) takes that photo's
+    pose; one a stop darker (an auto-exposure step, not a darker frame), one beside a photo
+    that did not register, and one of another size stay out."""
+    from gaslight_usd.bench.dark_frames import write_linear_photo
+    from gaslight_usd.poses.dark_frames import pose_dark_frames
+
+    like = sorted((EXAMPLE / "photos").glob("*.jpg"))[0]
+    grey = np.full((36, 48, 3), 0.3, np.float32)
+    shots = {"a.jpg": 1 / 60, "a_dark.jpg": 1 / 8000, "b.jpg": 1 / 60, "b_dim.jpg": 1 / 125,
+             "c.jpg": 1 / 60, "c_dark.jpg": 1 / 8000, "d.jpg": 1 / 60}
+    for name, t in shots.items():
+        write_linear_photo(tmp_path / name, grey, (t, 4.0), like)
+    write_linear_photo(tmp_path / "d_dark.jpg", np.full((24, 48, 3), 0.3, np.float32),
+                       (1 / 8000, 4.0), like)
+    paths = sorted(tmp_path.glob("*.jpg"))
+    cam = read_poses(EXAMPLE / "sparse" / "0").cameras
+    model = ColmapModel(cameras=[replace(cam[0], name="a.jpg"), replace(cam[1], name="b.jpg"),
+                                 replace(cam[2], name="d.jpg")])
+    left_out = {"a_dark.jpg": "too dark", "b_dim.jpg": "too dark", "c.jpg": "no overlap",
+                "c_dark.jpg": "too dark", "d_dark.jpg": "too dark"}
+    posed_model, posed = pose_dark_frames(model, paths, left_out)
+    assert posed == {"a_dark.jpg": "a.jpg"}
+    assert posed_model.names == ["a.jpg", "b.jpg", "d.jpg", "a_dark.jpg"]
+    np.testing.assert_allclose(posed_model.camera("a_dark.jpg").R, cam[0].R)
+    np.testing.assert_allclose(posed_model.camera("a_dark.jpg").center, cam[0].center)
+    assert len(set(posed_model.image_ids)) == 4

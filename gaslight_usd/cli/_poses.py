@@ -116,10 +116,14 @@ def run(args: argparse.Namespace) -> int:
     text = (f"registered {record.counts['registered']} of {record.counts['photos']} photos "
             f"({record.counts['points']} sparse points) in {record.seconds:.1f} s; "
             f"wrote {args.output}; units: {frame.get('units')}")
+    posed = record.metadata.get("posed_as_neighbour", {})
+    for name, photo in posed.items():
+        text += f"\n  posed as {photo} (a darker frame too dark for SfM): {name}"
     for name, why in unregistered.items():
         text += f"\n  not registered: {name}: {why}"
     emit(args, {"output": str(args.output), **record.counts, **record.metrics,
-                "seconds": record.seconds, "unregistered": unregistered, "frame": frame,
+                "seconds": record.seconds, "unregistered": unregistered,
+                "posed_as_neighbour": posed, "frame": frame,
                 "notes": record.metadata.get("notes", [])}, text)
     return 0
 

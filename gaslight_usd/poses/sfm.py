@@ -7,8 +7,10 @@ is written (file by file, atomically) by the caller.
 
 Photos that do not register are explained from the database: too few features,
 no verified matches with any other photo (no overlap), matched only inside a
-separate group, or matched but not solvable. The run fails with an InputError
-naming them when fewer than ``min_registered`` (a share) register.
+separate group, or matched but not solvable. A darker frame too dark for SfM, shot
+from a photo's position, takes that photo's pose (:mod:`.dark_frames`). The run fails
+with an InputError naming the rest when fewer than ``min_registered`` (a share)
+register.
 
 Lat-long panoramas (2:1 photos with ``panorama="auto"``, or all photos with
 ``"on"``) are cut into six cube faces that form a COLMAP rig: one centre, six
@@ -36,6 +38,7 @@ from ..imageio import LDR_EXTENSIONS, list_images, read_header, read_pixels
 from ..progress import Progress
 from . import panorama
 from .colmap import ColmapCamera, ColmapModel, read_model, write_model
+from .dark_frames import pose_dark_frames
 
 log = logging.getLogger(__name__)
 
@@ -296,6 +299,18 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
         registered = [p for p, imgs in owners.items() if set(imgs) & registered_images]
         unregistered = {p: _photo_reason(imgs, reasons) for p, imgs in owners.items()
                         if not set(imgs) & registered_images}
+        # a darker frame too dark for SfM, shot from a photo's position: that photo's pose
+        model, posed = pose_dark_frames(
+            model, [path for path in paths if owners[path.name] == [path.name]],
+            {p: r for p, r in unregistered.items() if owners[p] == [p]})
+        if posed:
+            registered += list(posed)
+            unregistered = {p: r for p, r in unregistered.items() if p not in posed}
+            stats["posed_as_neighbour"] = posed
+            warnings.append(
+                f"{len(posed)} darker frame(s) too dark for SfM posed as the photo shot "
+                "beside them: " + "; ".join(f"{f} as {n}" for f, n in sorted(posed.items())))
+            progress.message(warnings[-1])
     finally:
         shutil.rmtree(work, ignore_errors=True)
     result = SfmResult(model=model, photos=list(owners), registered=registered,
