@@ -253,7 +253,11 @@ def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
     lamp_frame = next(name for name, what in chosen.items() if what["light"] == "lamp")
     assert chosen[lamp_frame]["stops"] < -8  # black but for the bulb
     rng = np.random.default_rng(1)
-    _write_jpeg(photos / "zz_stray.jpg", rng.random((360, 480, 3)))
+    # a stray shot at 1/8000 s right after the last photo: far darker than it, but full of
+    # features that match nothing, so no darker frame of that photo (it stays out)
+    from gaslight_usd.bench.dark_frames import write_linear_photo
+    write_linear_photo(photos / "zz_stray.jpg", rng.random((360, 480, 3)).astype(np.float32),
+                       (1 / 8000, 4.0), EXAMPLE / "photos" / "view_00.jpg")
     out = tmp_path / "sparse"
     proc = subprocess.run(
         [str(Path(sys.executable).with_name("gaslight2usd")), "poses", str(photos), "-o", str(out),

@@ -11,10 +11,11 @@ after it in capture order (EXIF capture times, else file names, as brackets are
 ordered: :func:`gaslight_usd.uplift.grouping.capture_order`) the one nearer in time,
 within :data:`gaslight_usd.uplift.grouping.MAX_GAP_S`; without capture times the one
 before it. That photo must have registered and be the same size, and the frame at least
-:data:`MIN_STOPS_DARKER` darker by EXIF. A
-frame SfM did register keeps its own pose; one shot from elsewhere that SfM cannot
-place, and that follows no such photo, stays out (and is named). The report says which
-frames were posed so (``SfmResult.stats["posed_as_neighbour"]``).
+:data:`MIN_STOPS_DARKER` darker by EXIF; SfM must have left the frame out for too few
+features (:func:`gaslight_usd.poses.sfm.solve_poses` passes only those: a photo with
+features that matched nothing was shot from elsewhere). A frame SfM did register keeps
+its own pose; one that follows no such photo stays out (and is named). The report says
+which frames were posed so (``SfmResult.stats["posed_as_neighbour"]``).
 """
 
 from __future__ import annotations

@@ -46,6 +46,8 @@ MATCHERS = ("exhaustive", "sequential")
 CAMERA_MODELS = ("SIMPLE_PINHOLE", "PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV")
 MIN_FEATURES = 100
 """Fewer SIFT keypoints than this: the photo is blank, blurred or too dark."""
+FEW_FEATURES = "too few features"
+"""How the reason for a photo with fewer than :data:`MIN_FEATURES` keypoints begins."""
 MIN_INLIERS = 15
 """Verified matches (inliers) a photo pair needs to count as overlapping (COLMAP's default)."""
 
@@ -300,9 +302,11 @@ def solve_poses(photos: Path | list[Path], options: SfmOptions | None = None,
         unregistered = {p: _photo_reason(imgs, reasons) for p, imgs in owners.items()
                         if not set(imgs) & registered_images}
         # a darker frame too dark for SfM, shot from a photo's position: that photo's pose
+        # (one with features that matched nothing is no such frame: it stays out)
         model, posed = pose_dark_frames(
             model, [path for path in paths if owners[path.name] == [path.name]],
-            {p: r for p, r in unregistered.items() if owners[p] == [p]})
+            {p: r for p, r in unregistered.items()
+             if owners[p] == [p] and r.startswith(FEW_FEATURES)})
         if posed:
             registered += list(posed)
             unregistered = {p: r for p, r in unregistered.items() if p not in posed}
@@ -409,7 +413,7 @@ def _diagnose(db_path: Path, names: list[str], model_names: dict[int, set[str]],
         other = next((imgs for k, imgs in model_names.items() if k != best and name in imgs),
                      None)
         if kp < MIN_FEATURES:
-            reasons[name] = (f"too few features ({kp} SIFT keypoints, need {MIN_FEATURES}): "
+            reasons[name] = (f"{FEW_FEATURES} ({kp} SIFT keypoints, need {MIN_FEATURES}): "
                              "blank, blurred or too dark?")
         elif not good:
             top = max((c for _, c in partners[name]), default=0)
