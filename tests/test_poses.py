@@ -13,6 +13,8 @@ import OpenImageIO as oiio
 import pytest
 from conftest import EXAMPLE, needs_example
 
+from gaslight_usd.bench.dark_frames import dark_frame_photos, write_linear_photo
+from gaslight_usd.bench.suite_chain import scene_lights
 from gaslight_usd.cameras import (
     PinholeCamera,
     direction_to_latlong,
@@ -22,6 +24,7 @@ from gaslight_usd.cameras import (
 from gaslight_usd.errors import InputError
 from gaslight_usd.poses import colour_points, read_poses
 from gaslight_usd.poses.colmap import ColmapModel, read_model
+from gaslight_usd.poses.dark_frames import pose_dark_frames
 from gaslight_usd.poses.frame import (
     align_and_compare,
     camera_axes,
@@ -244,9 +247,6 @@ def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
     """The bundled photos, the README's darker frames beside them and one unrelated
     photo: all of them register, the stray is named; the bulb's frame, too dark for SfM,
     takes the pose of the photo it was shot beside."""
-    from gaslight_usd.bench.dark_frames import dark_frame_photos
-    from gaslight_usd.bench.suite_chain import scene_lights
-
     photos = tmp_path / "photos"
     chosen = dark_frame_photos(EXAMPLE, photos, scene_lights(json.loads(
         (EXAMPLE / "scene.json").read_text())), extra=True)
@@ -255,7 +255,6 @@ def test_sfm_on_the_example_matches_the_true_poses(tmp_path):
     rng = np.random.default_rng(1)
     # a stray shot at 1/8000 s right after the last photo: far darker than it, but full of
     # features that match nothing, so no darker frame of that photo (it stays out)
-    from gaslight_usd.bench.dark_frames import write_linear_photo
     write_linear_photo(photos / "zz_stray.jpg", rng.random((360, 480, 3)).astype(np.float32),
                        (1 / 8000, 4.0), EXAMPLE / "photos" / "view_00.jpg")
     out = tmp_path / "sparse"
@@ -364,9 +363,6 @@ def test_only_a_much_darker_frame_beside_a_registered_photo_takes_its_pose(tmp_p
     7 stops darker than the registered photo before it (by file name) takes that photo's
     pose; one a stop darker (an auto-exposure step, not a darker frame), one beside a photo
     that did not register, and one of another size stay out."""
-    from gaslight_usd.bench.dark_frames import write_linear_photo
-    from gaslight_usd.poses.dark_frames import pose_dark_frames
-
     like = sorted((EXAMPLE / "photos").glob("*.jpg"))[0]
     grey = np.full((36, 48, 3), 0.3, np.float32)
     shots = {"a.jpg": 1 / 60, "a_dark.jpg": 1 / 8000, "b.jpg": 1 / 60, "b_dim.jpg": 1 / 125,

@@ -41,6 +41,7 @@ from ..colour import convert
 from ..errors import GaslightError
 from ..imageio import read_header, read_image
 from ..poses import read_poses, write_poses
+from ..poses.colmap import with_added_images
 
 HEADROOM = 0.9
 """The light's brightest pixel lands at this fraction of white (JPEG ringing, 1/3-stop
@@ -221,9 +222,7 @@ def poses_with_dark_frames(folder: Path, chosen: dict[str, dict[str, Any]], out:
     folder, returned)."""
     model = read_poses(folder / "sparse" / "0")
     by_name = {cam.name: k for k, cam in enumerate(model.cameras)}
-    cameras, image_ids = list(model.cameras), list(model.image_ids)
-    camera_ids = list(model.camera_ids)
-    points2d = None if model.points2d is None else list(model.points2d)
+    added = []
     for name, what in chosen.items():
         k = by_name.get(what["of"]) if what["of"] is not None else 0
         if k is None or name in by_name:
@@ -232,10 +231,5 @@ def poses_with_dark_frames(folder: Path, chosen: dict[str, dict[str, Any]], out:
         if what["of"] is None:
             cam = replace(cam, R=quaternion_to_matrix(np.asarray(what["qvec"], np.float64)),
                           t=np.asarray(what["tvec"], np.float64))
-        cameras.append(cam)
-        image_ids.append(max(image_ids) + 1)  # read_poses numbers every image
-        camera_ids.append(camera_ids[k])
-        if points2d is not None:
-            points2d.append(np.zeros((0, 3)))
-    return write_poses(out, replace(model, cameras=cameras, image_ids=image_ids,
-                                    camera_ids=camera_ids, points2d=points2d))
+        added.append((cam, k))
+    return write_poses(out, with_added_images(model, added))

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import chain
 from pathlib import Path
 from typing import Any
@@ -150,6 +150,26 @@ class ColmapModel:
     def centers(self) -> np.ndarray:
         """(M, 3) camera centres in the world frame."""
         return np.array([c.center for c in self.cameras]).reshape(-1, 3)
+
+
+def with_added_images(model: ColmapModel, added: list[tuple[PinholeCamera, int]]
+                      ) -> ColmapModel:
+    """``model`` with more images: each ``(camera, k)`` posed as ``camera`` (its name the
+    image's) and sharing the intrinsics of the model's image ``k``, with a new image id and
+    no 2D points (nothing was triangulated from it)."""
+    if not added:
+        return model
+    cameras, image_ids = list(model.cameras), list(model.image_ids)
+    camera_ids = list(model.camera_ids)
+    points2d = None if model.points2d is None else list(model.points2d)
+    for cam, k in added:
+        cameras.append(cam)
+        image_ids.append(max(image_ids, default=0) + 1)
+        camera_ids.append(camera_ids[k])
+        if points2d is not None:
+            points2d.append(np.zeros((0, 3)))
+    return replace(model, cameras=cameras, image_ids=image_ids, camera_ids=camera_ids,
+                   points2d=points2d)
 
 
 def _intrinsics_from_pinholes(cameras: list[PinholeCamera]

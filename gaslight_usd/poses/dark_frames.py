@@ -23,10 +23,8 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from ..uplift.grouping import MAX_GAP_S, Photo, capture_order, read_photo
-from .colmap import ColmapModel
+from .colmap import ColmapModel, with_added_images
 
 MIN_STOPS_DARKER = 2.0
 """How much darker than its neighbour (EXIF exposure) a frame must be to be taken for a
@@ -45,10 +43,10 @@ def _neighbour(photos: list[Photo], order: list[int], k: int, registered: set[st
     beside = [photos[order[j]] for j in (at - 1, at + 1) if 0 <= j < len(order)]
     timed = frame.taken is not None and all(p.taken is not None for p in beside)
     if timed:
-        gap = [abs(p.taken - frame.taken) for p in beside]  # type: ignore[operator]
-        near = [p for p, g in zip(beside, gap, strict=True)
-                if g <= MAX_GAP_S + (p.exposure_time or 0.0) + (frame.exposure_time or 0.0)]
-        other = min(near, key=lambda p: abs(p.taken - frame.taken), default=None)  # type: ignore[operator]
+        gaps = [(abs(float(p.taken) - float(frame.taken)), p) for p in beside]
+        near = [(gap, p) for gap, p in gaps
+                if gap <= MAX_GAP_S + (p.exposure_time or 0.0) + (frame.exposure_time or 0.0)]
+        other = min(near, key=lambda gp: gp[0])[1] if near else None
     else:
         other = photos[order[at - 1]] if at > 0 else None
     if other is None or other.path.name not in registered or other.shape != frame.shape:
@@ -70,9 +68,7 @@ def pose_dark_frames(model: ColmapModel, paths: list[Path], unregistered: dict[s
     by_name = {cam.name: i for i, cam in enumerate(model.cameras)}
     registered = set(by_name)
     posed: dict[str, str] = {}
-    cameras, image_ids = list(model.cameras), list(model.image_ids)
-    camera_ids = list(model.camera_ids)
-    points2d = None if model.points2d is None else list(model.points2d)
+    added = []
     for k, photo in enumerate(photos):
         if photo.path.name not in unregistered:
             continue
@@ -80,13 +76,6 @@ def pose_dark_frames(model: ColmapModel, paths: list[Path], unregistered: dict[s
         if other is None:
             continue
         i = by_name[other.path.name]
-        cameras.append(replace(model.cameras[i], name=photo.path.name))
-        image_ids.append(max(image_ids) + 1)
-        camera_ids.append(camera_ids[i])
-        if points2d is not None:
-            points2d.append(np.zeros((0, 3)))
+        added.append((replace(model.cameras[i], name=photo.path.name), i))
         posed[photo.path.name] = other.path.name
-    if not posed:
-        return model, {}
-    return replace(model, cameras=cameras, image_ids=image_ids, camera_ids=camera_ids,
-                   points2d=points2d), posed
+    return with_added_images(model, added), posed
