@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +55,7 @@ from .exposure_check import exposure_outliers
 from .fine_power import MIN_VIEWS, FinePower, matched_light, measuring_views, with_fine_power
 from .flat_redraw import Redrawn, redraw_flat_lights
 from .frame_edge import CutLight, cut_lights, white_ratios
+from .frames_meet import frames_meeting, measuring_sightings, moved_to_meeting
 from .holes import fill_holes
 from .init import initial_points, neighbour_scales
 from .light_seeds import (
@@ -221,6 +222,7 @@ class Trainer:
         self.idle_rounds = 0
         self.elapsed = 0.0
         self.floaters_moved = 0
+        self.frames_met: list[dict] = []
         """Light splats :meth:`_surface_floaters` moved (reported with the fit's metrics)."""
         self.holes_filled: dict[str, Any] = {"splats": 0, "freed": 0, "empty_pixels": {}}
         """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
@@ -470,6 +472,7 @@ class Trainer:
                 self._densify_and_prune()
             if self.step == self._floaters_step():
                 self._surface_floaters()
+                self._bulbs_to_frames_midway()
                 self._fill_holes()  # densification has covered what it can by now
             self.progress.update(self.step, self.cfg.iterations, loss=loss,
                                  splats=self.model.count)
@@ -770,10 +773,15 @@ class Trainer:
         y = self.y_weights.cpu().numpy()
         bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
             self.data.images, y)
+        bulbs: list[np.ndarray | None] = [None] * len(seeds)
+        if min_views == 1:
+            scene, seeds, seed_views, bulbs = self._placed_by_frames(scene, seeds,
+                                                                     seed_views, bright)
         cams = self.cameras()
         walls = on_planes(scene, self.room_planes)
         own = [bright & (np.linalg.norm(scene.positions - seed.position, axis=1)
-                         <= KEEP_OUT_SIZES * seed.size) for seed in seeds]
+                         <= KEEP_OUT_SIZES * seed.size) if bulb is None else bulb
+               for seed, bulb in zip(seeds, bulbs, strict=True)]
         claimed = np.sum(own, axis=0)  # how many measured lights hold each splat
         lights = []
         for k, seed in enumerate(seeds):
@@ -795,6 +803,77 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used, cleared))
         return with_fine_power(scene, lights), lights
 
+    def _bulbs_to_frames_midway(self) -> None:
+        """Move the bulbs two darker frames measured where their sight lines meet while
+        the fit still has steps to go (:meth:`_placed_by_frames`): moved at the end, the
+        room round them was fitted to a bulb drawn elsewhere (a shade's side fitted
+        see-through where the bulb was drawn under it)."""
+        if not self.cfg.fine_power or self._measured_lights():
+            return
+        seeds, seed_views = self._lights_dark_frames_measured()
+        if not seeds:
+            return
+        scene = self.model.to_scene(self.active_degree(), {})
+        y = self.y_weights.cpu().numpy()
+        bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
+            self.data.images, y)
+        moved, _, _, _ = self._placed_by_frames(scene, seeds, seed_views, bright,
+                                                record=False)
+        rows = np.flatnonzero(np.any(moved.positions != scene.positions, axis=1))
+        if not len(rows):
+            return
+        self.model.set_rows(torch.as_tensor(rows, device=self.device), {
+            "means": torch.as_tensor(moved.positions[rows], device=self.device)})
+        if self.planes is not None:  # the moved splats' planes are where they are now
+            self._assign_planes()
+
+    def _placed_by_frames(self, scene: SplatScene, seeds: list[LightSeed],
+                          seed_views: list[list[int]], bright: np.ndarray,
+                          record: bool = True
+                          ) -> tuple[SplatScene, list[LightSeed], list[list[int]],
+                                     list[np.ndarray | None]]:
+        """Each light two or more darker frames measured, its bulb moved where their
+        sight lines meet (:mod:`.frames_meet`), its seed put there at the radius they
+        measured, and matched to those frames; the others as they were. The last list
+        holds, for each light so placed, its bulb's splats ((N,) mask): only those are
+        the light; the rest the seed held (the glow the photos saw at a shade's
+        opening) may be cleared from in front of it, as the frames saw through it."""
+        bulbs: list[np.ndarray | None] = [None] * len(seeds)
+        training = self._training_views()
+        if training is None:
+            return scene, seeds, seed_views, bulbs
+        white, views, images, floors = training
+        y = self.y_weights.cpu().numpy()
+        seeds, seed_views = list(seeds), list(seed_views)
+        for k, seed in enumerate(seeds):
+            meeting = frames_meeting(measuring_sightings(seed.position, seed.size, views,
+                                                         images, floors, y, white))
+            if meeting is None:
+                continue
+            rows = np.flatnonzero(bright & (np.linalg.norm(
+                scene.positions - seed.position, axis=1) <= KEEP_OUT_SIZES * seed.size))
+            scene, meeting, bulb = moved_to_meeting(scene, rows, meeting, y)
+            if not len(bulb):
+                continue
+            if record:
+                self.frames_met.append(meeting.as_dict())
+            bulbs[k] = np.isin(np.arange(scene.count), bulb)
+            seeds[k] = replace(seed, position=meeting.position, size=meeting.radius)
+            seed_views[k] = [self.train[i] for i in meeting.views]
+        return scene, seeds, seed_views, bulbs
+
+    def _training_views(self) -> tuple[float, list[PinholeCamera], list[np.ndarray],
+                                       list[np.ndarray | None]] | None:
+        """The training views' median white, cameras, images and clip floors; None where
+        no view has a white (nothing clipped)."""
+        whites = self._view_whites(self.train)
+        if whites is None:
+            return None
+        cams = self.cameras()
+        return (float(np.median(whites)), [cams[i] for i in self.train],
+                [self.data.images[i] for i in self.train],
+                [self.data.floor(i) for i in self.train])
+
     def _lights_dark_frames_measured(self) -> tuple[list[LightSeed], list[list[int]]]:
         """The compact lights the photos clipped (:meth:`_light_seeds`) that a training
         view measured unclipped (a darker frame shot for them:
@@ -803,14 +882,10 @@ class Trainer:
         (bounds, with the uplift's fill pulling weakly) left it free to overshoot or fall
         short of it (``gaslight2usd bench --suite chain --method "recursive + extra dark
         frames"``; docs/measurements.md, session 56)."""
-        whites = self._view_whites(self.train)
-        if whites is None:
+        training = self._training_views()
+        if training is None:
             return [], []
-        white = float(np.median(whites))
-        cams = self.cameras()
-        views = [cams[i] for i in self.train]
-        images = [self.data.images[i] for i in self.train]
-        floors = [self.data.floor(i) for i in self.train]
+        white, views, images, floors = training
         y = self.y_weights.cpu().numpy()
         seeds, seed_views = [], []
         for seed in self._light_seeds():
@@ -1033,6 +1108,7 @@ class Trainer:
             "resumed": resumed,
             "clipped_lights": [light.as_dict() for light in lights],
             "fine_power": [light.as_dict() for light in fine],
+            "placed_by_frames": self.frames_met,
             "surfaced_lights": {**surfaced.as_dict(), "floaters_moved_midway":
                                 self.floaters_moved},
             "broad_lights_on_walls": on_walls.as_dict(),

@@ -1,0 +1,192 @@
+"""A compact light two darker frames measured, put where their sight lines to it meet.
+
+The photos that clip a shaded lamp see the inside of its shade lit at the opening, and
+the light seeded from their clipped outlines (:mod:`.light_seeds`) sits there, under the
+bulb. The darker frames shot from below it (the README's capture: two, from either side)
+see the bulb itself through the opening, but each frame alone cannot tell how far along
+its line of sight the bulb is, and the fit explains each frame with a lobe at the seeded
+depth: on ``shade:7`` one lobe per frame, 10 cm under the bulb and 13 cm apart. Drawn
+there, the bulb hangs below its shade: a probe from the side sees what the shade hides,
+and one under the lamp sees it off where it is.
+
+Two frames' lines of sight to the bulb's blob cross at the bulb. So where two or more
+training views measured a light (it reads over twice the white round it and they
+clipped nothing there: :func:`measuring_sightings`) from directions at least
+:data:`MIN_ANGLE_DEG` apart, and their lines pass within :data:`MAX_GAP_SIZES` of the
+light's measured radius of the point nearest them all (:func:`frames_meeting`), the
+light's bright splats (at least :data:`BULB_SHARE` of the frames' reading: the bulb, not
+the opening's glow) are moved there, drawn together to the radius the frames measured
+(:func:`moved_to_meeting`). The fit does it at the end of its densify window, so that
+its remaining steps fit the room round the bulb where it is (moved only at the end, the
+shade's glow at the opening hid it from below: the fit had made a lid of it), and again
+at the end; :mod:`.fine_power` then matches the bulb alone to those frames, and clears
+what hid it from them. Measured by ``gaslight2usd bench --suite chain --scene shade:7
+--method "recursive + extra dark frames"`` (``docs/measurements.md``, session 59).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from scipy import ndimage
+
+from ..cameras import PinholeCamera
+from ..sightings import MIN_BASELINE_DEG
+from ..splats import SplatScene
+from .frame_edge import pixel_rays
+
+MIN_ANGLE_DEG = MIN_BASELINE_DEG
+"""The widest angle between two frames' sight lines must be at least this: nearer
+parallel, a pixel of error moves their meeting point along them by more than a bulb."""
+REACH_SIZES = 3.0
+"""Each frame looks for the light's blob this many of its seeded sizes round the seed
+(the seed sits at the opening, 0.18 m from the bulb on ``shade:7``)."""
+PEAK_SHARE = 0.5
+"""The blob: the connected pixels at or over this share of the brightest in reach."""
+MAX_GAP_SIZES = 2.0
+"""Every frame's sight line passes within this many of the measured radius of the
+meeting point (else the frames saw different things, and nothing moves)."""
+BULB_SHARE = 0.25
+"""The light's splats at least this share of the frames' brightest reading are the bulb
+and move; dimmer ones (the glow the photos saw at the opening) stay."""
+WHITE_MULTIPLE = 2.0
+"""A view measured the light where it reads over this many whites round it (as
+:func:`.fine_power.measuring_views` says)."""
+
+
+@dataclass
+class Sighting:
+    """One view's measurement of the light: its line of sight and the blob's size."""
+
+    view: int
+    origin: np.ndarray
+    direction: np.ndarray
+    radius_rad: float
+    """The blob's radius as an angle (its area's equivalent disc)."""
+    peak: float
+    """The brightest luminance in it."""
+
+
+@dataclass
+class Meeting:
+    """Where the frames' sight lines meet, and what moved there."""
+
+    position: np.ndarray
+    radius: float
+    """The light's radius as the frames measured it (m)."""
+    views: list[int]
+    peak: float
+    moved: int = 0
+    shift: float = 0.0
+    """How far the moved splats' centre went (m)."""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"position": [round(float(v), 4) for v in self.position],
+                "radius": round(self.radius, 4), "views": self.views,
+                "splats_moved": self.moved, "shift_m": round(self.shift, 4)}
+
+
+def _reach_box(cam: PinholeCamera, centre: np.ndarray, reach: float
+               ) -> tuple[int, int, int, int] | None:
+    uv, z = cam.project(centre[None])
+    if not (z[0] > 0 and np.isfinite(uv).all()):
+        return None
+    r = int(math.ceil(cam.fx * reach / z[0]))
+    u, v = int(uv[0, 0]), int(uv[0, 1])
+    u0, v0 = max(u - r, 0), max(v - r, 0)
+    u1, v1 = min(u + r + 1, cam.width), min(v + r + 1, cam.height)
+    return None if u0 >= u1 or v0 >= v1 else (u0, v0, u1, v1)
+
+
+def measuring_sightings(centre: np.ndarray, size: float, cameras: list[PinholeCamera],
+                        images: list[np.ndarray], floors: list[np.ndarray | None],
+                        y_weights: np.ndarray, white: float) -> list[Sighting]:
+    """The views that measured a clipped light seeded at ``centre`` (``size`` its
+    radius): within :data:`REACH_SIZES` of it they clipped nothing and read over
+    :data:`WHITE_MULTIPLE` whites. Each gives the sight line to its blob's
+    luminance-weighted centre (:data:`PEAK_SHARE`)."""
+    y = np.asarray(y_weights, np.float32)
+    out = []
+    for i, (cam, image, floor) in enumerate(zip(cameras, images, floors, strict=True)):
+        box = _reach_box(cam, np.asarray(centre, np.float64), REACH_SIZES * size)
+        if box is None:
+            continue
+        u0, v0, u1, v1 = box
+        if floor is not None and bool((floor[v0:v1, u0:u1] > 0).any()):
+            continue
+        lum = image[v0:v1, u0:u1] @ y
+        peak = float(lum.max())
+        if peak <= WHITE_MULTIPLE * white:
+            continue
+        labels, _ = ndimage.label(lum >= PEAK_SHARE * peak)
+        blob = labels == labels[np.unravel_index(int(np.argmax(lum)), lum.shape)]
+        rows, cols = np.nonzero(blob)
+        w = lum[blob].astype(np.float64)
+        uv = np.array([[u0 + 0.5 + float(cols @ w) / w.sum(),
+                        v0 + 0.5 + float(rows @ w) / w.sum()]])
+        radius_px = math.sqrt(len(w) / math.pi)
+        out.append(Sighting(i, cam.center.astype(np.float64), pixel_rays(cam, uv)[0],
+                            math.atan(radius_px / cam.fx), peak))
+    return out
+
+
+def meeting_point(origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """(3,) the point nearest, in the least-squares sense, to the lines through
+    ``origins`` along unit ``directions`` (both (N, 3), N >= 2, not all parallel)."""
+    d = np.asarray(directions, np.float64)
+    project = np.eye(3)[None] - d[:, :, None] * d[:, None, :]
+    return np.linalg.solve(project.sum(axis=0),
+                           np.einsum("nij,nj->i", project, np.asarray(origins, np.float64)))
+
+
+def frames_meeting(sightings: list[Sighting]) -> Meeting | None:
+    """Where ``sightings`` (two or more) meet, or None when their lines are nearer
+    parallel than :data:`MIN_ANGLE_DEG` or miss the meeting point by more than
+    :data:`MAX_GAP_SIZES` of the light's measured radius."""
+    if len(sightings) < 2:
+        return None
+    d = np.array([s.direction for s in sightings])
+    cos = np.clip(d @ d.T, -1.0, 1.0)
+    if math.degrees(math.acos(float(cos.min()))) < MIN_ANGLE_DEG:
+        return None
+    o = np.array([s.origin for s in sightings])
+    point = meeting_point(o, d)
+    rel = point - o
+    along = np.sum(rel * d, axis=1)
+    if (along <= 0).any():
+        return None
+    gaps = np.linalg.norm(rel - along[:, None] * d, axis=1)
+    radii = along * np.tan([s.radius_rad for s in sightings])
+    radius = float(np.median(radii))
+    if float(gaps.max()) > MAX_GAP_SIZES * max(radius, 1e-6):
+        return None
+    return Meeting(point, radius, [s.view for s in sightings],
+                   float(max(s.peak for s in sightings)))
+
+
+def moved_to_meeting(scene: SplatScene, rows: np.ndarray, meeting: Meeting,
+                     y_weights: np.ndarray) -> tuple[SplatScene, Meeting, np.ndarray]:
+    """``scene`` with the splats of ``rows`` that read at least :data:`BULB_SHARE` of the
+    frames' peak (the bulb) moved to ``meeting``: their weighted centre onto it, drawn
+    together so that their spread is no wider than the radius the frames measured; and
+    the indices of the bulb's splats."""
+    rows = np.asarray(rows, np.int64)
+    lum = scene.base_colours[rows] @ np.asarray(y_weights, np.float64)
+    bulb = rows[lum >= BULB_SHARE * meeting.peak]
+    if not len(bulb):
+        return scene, meeting, bulb
+    weight = (scene.base_colours[bulb] @ np.asarray(y_weights, np.float64)) * \
+        scene.opacities[bulb] * np.prod(scene.scales[bulb], axis=1) ** (2.0 / 3.0)
+    pos = scene.positions[bulb].astype(np.float64)
+    centre = weight @ pos / max(float(weight.sum()), 1e-30)
+    spread = float(np.sqrt(weight @ np.sum((pos - centre) ** 2, axis=1)
+                           / max(float(weight.sum()), 1e-30)))
+    shrink = min(1.0, meeting.radius / spread) if spread > 0 else 1.0
+    positions = scene.positions.copy()
+    positions[bulb] = (meeting.position + (pos - centre) * shrink).astype(positions.dtype)
+    moved = replace(meeting, moved=int(len(bulb)),
+                    shift=float(np.linalg.norm(meeting.position - centre)))
+    return replace(scene, positions=positions, metadata=dict(scene.metadata)), moved, bulb
