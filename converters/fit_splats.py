@@ -226,7 +226,8 @@ def fit(ctx: StageContext) -> StageResult:
                                    "sh_degree", "fit_seconds", "init_seconds", "pruned_idle",
                                    "backdrop_splats", "exposure_outliers",
                                    "single_view_lights", "pose_agreement", "cut_lights",
-                                   "clipped_lights", "room_box", "lit_floor", "holes_filled")},
+                                   "clipped_lights", "fine_power", "placed_by_frames",
+                                   "room_box", "lit_floor", "holes_filled")},
     )
 
 

@@ -86,6 +86,9 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     assert fit_stage["metrics"]["lit_floor"] is None  # no lit patch on a floor to pin one
     # true HDR views clip nothing: no clipped patch for fit.holes to seed
     assert fit_stage["metrics"]["holes_filled"]["splats"] == 0
+    # what the fit did to its measured lights is reported; no darker frames, none placed
+    assert isinstance(fit_stage["metrics"]["fine_power"], list)
+    assert fit_stage["metrics"]["placed_by_frames"] == []
     assert not list(tmp_path.glob(".*checkpoint*"))
 
 
