@@ -222,8 +222,9 @@ class Trainer:
         self.idle_rounds = 0
         self.elapsed = 0.0
         self.floaters_moved = 0
-        self.frames_met: list[dict] = []
         """Light splats :meth:`_surface_floaters` moved (reported with the fit's metrics)."""
+        self.frames_met: list[dict[str, Any]] = []
+        """The bulbs :meth:`_placed_by_frames` moved at the end (reported likewise)."""
         self.holes_filled: dict[str, Any] = {"splats": 0, "freed": 0, "empty_pixels": {}}
         """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
         self._reset_stats()
@@ -774,7 +775,7 @@ class Trainer:
         bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
             self.data.images, y)
         bulbs: list[np.ndarray | None] = [None] * len(seeds)
-        if min_views == 1:
+        if min_views == 1:  # lights darker frames measured: two may place theirs
             scene, seeds, seed_views, bulbs = self._placed_by_frames(scene, seeds,
                                                                      seed_views, bright)
         cams = self.cameras()
@@ -834,7 +835,8 @@ class Trainer:
                                      list[np.ndarray | None]]:
         """Each light two or more darker frames measured, its bulb moved where their
         sight lines meet (:mod:`.frames_meet`), its seed put there at the radius they
-        measured, and matched to those frames; the others as they were. The last list
+        measured and its views made those frames (to be matched to them); the others as
+        they were. The last list
         holds, for each light so placed, its bulb's splats ((N,) mask): only those are
         the light; the rest the seed held (the glow the photos saw at a shade's
         opening) may be cleared from in front of it, as the frames saw through it."""
