@@ -316,6 +316,7 @@ class Trainer:
         self.grad_count = state["grad_count"].to(self.device)
         self.history, self.elapsed = state["history"], state["elapsed"]
         self.floaters_moved = int(state.get("floaters_moved", 0))
+        self.frames_met = []  # filled at the end, after any checkpoint
         self.holes_filled = state.get("holes_filled", {"splats": 0, "freed": 0, "empty_pixels": {}})
         self.room_planes = [Plane(**plane) for plane in state.get("room_planes", [])]
         self.lit_floor_info = state.get("lit_floor")
