@@ -773,8 +773,7 @@ class Trainer:
         if not seeds:
             return scene, []
         y = self.y_weights.cpu().numpy()
-        bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
-            self.data.images, y)
+        bright = self._bright_splats(scene)
         bulbs: list[np.ndarray | None] = [None] * len(seeds)
         if min_views == 1:  # lights darker frames measured: two may place theirs
             scene, seeds, seed_views, bulbs = self._placed_by_frames(scene, seeds,
@@ -805,6 +804,13 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used, cleared))
         return with_fine_power(scene, lights), lights
 
+    def _bright_splats(self, scene: SplatScene) -> np.ndarray:
+        """(N,) splats brighter than a measured light must be
+        (:data:`MEASURED_LIGHT_RATIO` x the views' median level)."""
+        y = self.y_weights.cpu().numpy()
+        return scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
+            self.data.images, y)
+
     def _bulbs_to_frames_midway(self) -> None:
         """Move the bulbs two darker frames measured where their sight lines meet while
         the fit still has steps to go (:meth:`_placed_by_frames`): moved at the end, the
@@ -816,10 +822,8 @@ class Trainer:
         if not seeds:
             return
         scene = self.model.to_scene(self.active_degree(), {})
-        y = self.y_weights.cpu().numpy()
-        bright = scene.base_colours @ y > MEASURED_LIGHT_RATIO * measured_level(
-            self.data.images, y)
-        moved, _, _, _ = self._placed_by_frames(scene, seeds, seed_views, bright,
+        moved, _, _, _ = self._placed_by_frames(scene, seeds, seed_views,
+                                                self._bright_splats(scene),
                                                 record=False)
         rows = np.flatnonzero(np.any(moved.positions != scene.positions, axis=1))
         if not len(rows):
@@ -860,7 +864,9 @@ class Trainer:
                 continue
             if record:
                 self.frames_met.append(meeting.as_dict())
-            bulbs[k] = np.isin(np.arange(scene.count), bulb)
+            mask = np.zeros(scene.count, bool)
+            mask[bulb] = True
+            bulbs[k] = mask
             seeds[k] = replace(seed, position=meeting.position, size=meeting.radius)
             seed_views[k] = [self.train[i] for i in meeting.views]
         return scene, seeds, seed_views, bulbs
