@@ -56,7 +56,7 @@ from .pipeline import artifacts_from_paths, run_job, with_working_size
 from .progress import Progress, format_seconds
 from .provenance import tool_version
 from .registry import Settings
-from .stop_signals import claim_stop_signals, stop_on_signals
+from .stop_signals import claim_stop_signals, stop_on_signals, stop_requested
 
 LOCK_FILE = ".batch.lock"
 DASK_LOG_FILE = "dask-workers.log"
@@ -182,6 +182,10 @@ def run_scene(scene: Scene) -> dict[str, Any]:
                       flush=True)
                 raise
             except Exception as exc:  # one scene's crash must not stop the batch
+                if stop_requested():  # the stop's own error, raised inside C code
+                    print(f"interrupted after {time.perf_counter() - t0:.1f} s", file=log,
+                          flush=True)
+                    raise KeyboardInterrupt from exc
                 status, error = "failed", f"internal error: {type(exc).__name__}: {exc}"
         seconds = round(time.perf_counter() - t0, 3)
         print(f"{status} in {seconds:.1f} s" + (f": {error}" if error else ""), file=log,

@@ -41,6 +41,7 @@ from .registry import (
     StageContext,
     default_registry,
 )
+from .stop_signals import as_interrupt
 
 STATE_FILE = ".gaslight-state.json"
 REPORT_FILE = "report.json"
@@ -273,7 +274,8 @@ class ChainRun:
                                    options=stage_options, progress=self.progress.child(label),
                                    resume=continues)
                 result = conv.run(ctx)
-            except BaseException as exc:
+            except BaseException as caught:
+                exc = as_interrupt(caught)  # a stop signal's error is the stop
                 record.status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"
                 record.error = str(exc) or type(exc).__name__
                 record.seconds = round(time.perf_counter() - t0, 3)
@@ -283,6 +285,8 @@ class ChainRun:
                     shutil.rmtree(self.out_dir, ignore_errors=True)
                 else:
                     self.write_report(status="failed")
+                if exc is not caught:
+                    raise exc from caught
                 raise
             record.seconds = round(time.perf_counter() - t0, 3)
             record.status = "done"

@@ -1,4 +1,7 @@
 import json
+import os
+import signal
+import time
 
 import numpy as np
 import pytest
@@ -11,6 +14,7 @@ from gaslight_usd.kinds import Artifact, Kind, detect_kind
 from gaslight_usd.poses.views import hdr_view_paths
 from gaslight_usd.progress import Progress
 from gaslight_usd.registry import Converter, Registry, Settings, StageResult, default_registry
+from gaslight_usd.stop_signals import stop_on_signals
 
 
 def mean_panorama(ctx):
@@ -163,3 +167,40 @@ def test_entry_point_plugins_are_loaded(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(site))
     names = [c.name for c in registry_mod._plugin_converters()]
     assert "plugin.demo" in names
+
+
+def stopped_inside_c_code(ctx):
+    """A stage hit by SIGTERM while C code ran a Python callback: numpy swallows the
+    KeyboardInterrupt there and raises its own TypeError (seen in a batch on 2 cores)."""
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # the handler raises here
+    except KeyboardInterrupt:
+        raise TypeError("Cannot compare structured arrays unless they have a common "
+                        "dtype.") from None
+    raise AssertionError("the stop signal never came")
+
+
+def test_an_error_raised_by_a_stop_signal_is_an_interruption(photo_folder, tmp_path):
+    stage = Converter(name="test.stopped", step="hdri", inputs=(Kind.HDR_VIEWS,),
+                      output=Kind.HDRI, run=stopped_inside_c_code, description="stopped")
+    reg = Registry([default_registry()["uplift.linear"], stage])
+    run = ChainRun(tmp_path / "run", Settings.resolved(), reg, Progress(quiet=True))
+    with stop_on_signals(preload_pycolmap=False), pytest.raises(KeyboardInterrupt) as caught:
+        run.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDRI])
+    assert isinstance(caught.value.__cause__, TypeError)
+    report = json.loads((tmp_path / "run" / "report.json").read_text())
+    assert [s["status"] for s in report["stages"]] == ["done", "interrupted"]
+
+    # without a stop signal the same error is the stage's failure
+    def plain_error(ctx):
+        raise TypeError("a real bug")
+
+    reg = Registry([default_registry()["uplift.linear"],
+                    Converter(name="test.bug", step="hdri", inputs=(Kind.HDR_VIEWS,),
+                              output=Kind.HDRI, run=plain_error, description="bug")])
+    run = ChainRun(tmp_path / "run2", Settings.resolved(), reg, Progress(quiet=True))
+    with stop_on_signals(preload_pycolmap=False), pytest.raises(TypeError, match="real bug"):
+        run.run([Artifact(Kind.LDR_VIEWS, photo_folder)], [Kind.HDRI])
+    report = json.loads((tmp_path / "run2" / "report.json").read_text())
+    assert [s["status"] for s in report["stages"]] == ["done", "failed"]
