@@ -80,11 +80,36 @@ class PinholeCamera:
         (H, W, ...) covering this camera's frame at any size, and whether each lies in
         front of the camera and inside the image (the indices are -1 elsewhere)."""
         uv, z = self.project(points)
+        return self._indices(uv[:, 0], uv[:, 1], z, shape)
+
+    def pixels_of_grid(self, base: np.ndarray, u: np.ndarray, v: np.ndarray,
+                       gu: np.ndarray, gv: np.ndarray, shape: tuple[int, ...]
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`pixels_of` for the grid of points ``base + gu[i] u + gv[j] v``, in the
+        order of ``np.meshgrid(gu, gv, indexing="ij")`` raveled. A plane's grid is one
+        affine map in camera space: the outer sums cost a fraction of projecting each
+        point (the lit outlines sweep grids of up to 160 000 cells through every view at
+        21 depths)."""
+        o = self.R @ np.asarray(base, np.float64) + self.t
+        ru, rv = self.R @ np.asarray(u, np.float64), self.R @ np.asarray(v, np.float64)
+        gu = np.asarray(gu, np.float64)[:, None]
+        gv = np.asarray(gv, np.float64)[None, :]
+        cam = [(o[k] + gu * ru[k] + gv * rv[k]).ravel() for k in range(3)]
+        z = cam[2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            px = self.fx * cam[0] / z + self.cx
+            py = self.fy * cam[1] / z + self.cy
+        return self._indices(px, py, z, shape)
+
+    def _indices(self, px: np.ndarray, py: np.ndarray, z: np.ndarray,
+                 shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         h, w = shape[:2]
-        uv = np.where(np.isfinite(uv) & (z[:, None] > 0), uv, -1.0)
-        x = np.floor(uv[:, 0] * w / self.width).astype(np.int64)
-        y = np.floor(uv[:, 1] * h / self.height).astype(np.int64)
-        inside = (z > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+        ahead = z > 0
+        px = np.where(np.isfinite(px) & ahead, px, -1.0)
+        py = np.where(np.isfinite(py) & ahead, py, -1.0)
+        x = np.floor(px * w / self.width).astype(np.int64)
+        y = np.floor(py * h / self.height).astype(np.int64)
+        inside = ahead & (x >= 0) & (x < w) & (y >= 0) & (y < h)
         return np.where(inside, x, -1), np.where(inside, y, -1), inside
 
     def ray_directions(self) -> np.ndarray:

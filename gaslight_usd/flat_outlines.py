@@ -298,19 +298,29 @@ def look_up(cam: PinholeCamera, mask: np.ndarray, points: np.ndarray
     return inside, value
 
 
+def grid_look_up(cam: PinholeCamera, mask: np.ndarray, base: np.ndarray, u: np.ndarray,
+                 v: np.ndarray, gu: np.ndarray, gv: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`look_up` for the grid ``base + gu[i] u + gv[j] v`` (``meshgrid(gu, gv,
+    indexing="ij")`` raveled)."""
+    x, y, inside = cam.pixels_of_grid(base, u, v, gu, gv, mask.shape)
+    value = np.zeros(len(inside), bool)
+    value[inside] = mask[y[inside], x[inside]]
+    return inside, value
+
+
 def _counts(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: np.ndarray,
             gv: np.ndarray, cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
             front: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per cell of the plane (``normal``, ``offset``), ``(len(gu), len(gv))`` each: how
     many views frame it, how many saw light there, and the last view that framed it."""
-    uu, vv = np.meshgrid(gu, gv, indexing="ij")
-    points = offset * normal + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
-    framed = np.zeros(len(points), np.int32)
-    seen = np.zeros(len(points), np.int32)
-    which = np.full(len(points), -1, np.int32)
+    n = len(gu) * len(gv)
+    framed = np.zeros(n, np.int32)
+    seen = np.zeros(n, np.int32)
+    which = np.full(n, -1, np.int32)
     for k, (cam, mask, ahead) in enumerate(zip(cameras, lit, front, strict=True)):
         if ahead and mask is not None:
-            inside, value = look_up(cam, mask, points)
+            inside, value = grid_look_up(cam, mask, offset * normal, u, v, gu, gv)
             framed += inside
             seen += value
             which[inside] = k
@@ -372,11 +382,11 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
     steps = np.linspace(-DEPTH_SWEEP, DEPTH_SWEEP, 2 * DEPTH_STEPS + 1) * distance
     lit_cells = []  # per step, per view: its lit cells; None where it frames part only
     for step in steps:
-        points = (offset + step) * normal + flat[:, :1] * u + flat[:, 1:] * v
+        base = (offset + step) * normal
         row: list[np.ndarray | None] = []
         for cam, mask, ahead in zip(cameras, lit, front, strict=True):
-            inside, value = (look_up(cam, mask, points) if ahead and mask is not None
-                             else (None, None))
+            inside, value = (grid_look_up(cam, mask, base, u, v, gu, gv)
+                             if ahead and mask is not None else (None, None))
             row.append(value if inside is not None and inside.all() else None)
         lit_cells.append(row)
     # one set of views at every depth, each framing the whole grid and seeing the light

@@ -358,3 +358,31 @@ def test_a_camera_finds_points_in_an_image_of_any_size():
     x, y, inside = cam.pixels_of(points, (60, 80, 3))
     assert inside.tolist() == [True, False, False]
     assert (x[0], y[0]) == (40, 30) and x[1] == -1 and y[2] == -1
+
+
+def test_a_planes_grid_lands_on_the_pixels_its_points_do():
+    """The outlines' sweep projects a plane's grid as one affine map; it must pick the
+    same pixels as projecting each point, behind the camera and off the frame included."""
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        q = rng.normal(size=4)
+        w, x, y, z = q / np.linalg.norm(q)
+        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                      [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        cam = PinholeCamera(320, 240, 250.0, 250.0, 160.0, 120.0, r, rng.normal(0, 1, 3))
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        u = np.cross(normal, [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(normal, u)
+        centre, ahead = -r.T @ cam.t, r.T @ np.array([0.0, 0.0, 1.0])
+        base = centre + 2.0 * ahead + rng.normal(0, 0.3, 3)  # the plane crosses the view
+        gu, gv = np.linspace(-3, 3, 90), np.linspace(-2, 2, 70)
+        uu, vv = np.meshgrid(gu, gv, indexing="ij")
+        points = base + uu.reshape(-1, 1) * u + vv.reshape(-1, 1) * v
+        each = cam.pixels_of(points, (60, 80))
+        grid = cam.pixels_of_grid(base, u, v, gu, gv, (60, 80))
+        assert each[2].any() and not each[2].all()  # some framed, some not
+        for a, b in zip(each, grid, strict=True):
+            np.testing.assert_array_equal(a, b)
