@@ -68,6 +68,11 @@ light ends, and a ceiling panel lights the ceiling round it over the median many
 (its outline from true HDR views ran a quarter larger than the panel, 5-20 % for windows;
 ``docs/measurements.md``, session 50)."""
 EDGE_QUANTILE = 0.9
+CLIPPED_SHARE = 0.1
+"""In a view that clipped something, a bright region with under this share of its pixels
+clipped is a light it measured (:func:`lit_masks`); over it, a clipped light and the ring
+its blur lays round it (the shaded lamp's glow in a window's darker frame: 93 % clipped;
+its window: one pixel of 6900)."""
 MIN_FILL = 0.8
 """An outline is a light's rectangle only where its lit cells fill this share of it."""
 MAX_OUTLINES = 32
@@ -448,14 +453,31 @@ def lit_masks(images: Sequence[np.ndarray], floors: Sequence[np.ndarray | None],
 
     Not over the view's white, as the sightings read an unclipped view: a true HDR view's
     white is any level, and over it the outlines took whole lit ceilings with the panels
-    (``docs/measurements.md``, session 49)."""
+    (``docs/measurements.md``, session 49).
+
+    A view that clipped something also saw, unclipped, the lights dimmer than what it
+    clipped: a darker frame exposed for a window clips a lamp's glow and measures the
+    window. Its regions over the ratio (clipped pixels included) that it measured (under
+    :data:`CLIPPED_SHARE` of their pixels clipped: a firefly or JPEG ringing can clip a
+    pixel of a window) are lit too; in one more clipped, a clipped light and its halo,
+    only the clipped pixels are. Counting only the clipped pixels, such a frame
+    voted "dark" over the window it measured, and a shaded room's window came out half its
+    width (``docs/measurements.md``, session 61)."""
     out = []
     for image, floor in zip(images, floors, strict=True):
-        if floor is not None and bool(np.any(np.asarray(floor) > 0)):
-            out.append(np.asarray(floor) > 0)
-            continue
         lum = np.asarray(image, np.float64) @ np.asarray(weights, np.float64)
-        out.append(_to_edges(lum, lum > UNCLIPPED_RATIO * max(float(np.median(lum)), 1e-30)))
+        bright = lum > UNCLIPPED_RATIO * max(float(np.median(lum)), 1e-30)
+        clipped = None if floor is None else np.asarray(floor) > 0
+        if clipped is None or not clipped.any():
+            out.append(_to_edges(lum, bright))
+            continue
+        labels, count = ndimage.label(bright | clipped)
+        pixels = np.bincount(labels.ravel(), minlength=count + 1)
+        share = np.bincount(labels.ravel(), weights=clipped.ravel(), minlength=count + 1)
+        measured = share < CLIPPED_SHARE * pixels
+        measured[0] = False
+        out.append(clipped | _to_edges(np.where(clipped, np.maximum(lum, floor), lum),
+                                       measured[labels]))
     return out
 
 

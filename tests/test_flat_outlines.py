@@ -101,6 +101,38 @@ def test_views_that_clipped_nothing_see_a_light_over_many_times_their_median():
     assert all(np.array_equal(m, f > 0) for m, f in zip(clipped, floors, strict=True))
 
 
+def test_a_darker_frame_that_clipped_a_lamp_still_sees_the_window_it_measured():
+    """Two photos clipped the window; two darker frames exposed for it measured it (one
+    JPEG-rung pixel of it clipped) and clipped a lamp's glow elsewhere, a bright ring round
+    it. The frames see the window lit and the glow's clipped pixels, not its ring; with
+    only their clipped pixels counted they voted the window dark, and it had no outline."""
+    cams = cameras()
+    weights = np.array([0.2126, 0.7152, 0.0722])
+    images, floors = [], []
+    for k, cam in enumerate(cams):
+        window = window_mask(cam)
+        if k < 2:  # a photo: the window clipped at its white
+            lum = np.where(window, 1.0, 0.2)
+            floors.append(np.where(window, 1.0, 0.0))
+        else:  # a darker frame: the window measured at 10, the walls at 0.3
+            lum = np.where(window, 10.0, 0.3)
+            lum[2:14, 2:14] = 6.0  # the glow's ring, over 8 x the median
+            lum[4:12, 4:12] = 12.0  # the glow, clipped
+            rows, cols = np.nonzero(window)
+            lum[rows[0], cols[0]] = 12.0  # a clipped pixel of the window
+            floor = np.where(lum >= 12.0, 12.0, 0.0)
+            floors.append(floor)
+        images.append(np.repeat(lum[..., None], 3, axis=2).astype(np.float32))
+    masks = lit_masks(images, floors, weights)
+    for k in (2, 3):
+        assert masks[k][window_mask(cams[k])].all()
+        assert masks[k][4:12, 4:12].all() and not masks[k][2:4, 2:14].any()
+    window = window_outline(plane_outlines(PLANES, cams, masks))
+    np.testing.assert_allclose(half_along_z_y(window), HALF, atol=0.05)
+    only_clipped = [f > 0 for f in floors]
+    assert not [o for o in plane_outlines(PLANES, cams, only_clipped) if o.normal[0] < -0.9]
+
+
 def test_a_light_the_outline_holds_takes_its_rectangle():
     cams = cameras()
     outlines = plane_outlines(PLANES, cams, [window_mask(c) for c in cams])
