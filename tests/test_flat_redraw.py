@@ -273,3 +273,39 @@ def test_a_view_that_saw_the_window_near_its_black_does_not_read_it():
     assert both is not None and both[0] == pytest.approx(1.095 * level, rel=1e-3)
     alone = rectangle_reading(*args, ceilings)
     assert alone is not None and alone[0] == pytest.approx(level, rel=1e-3)
+
+
+def test_floaters_farther_out_join_the_window_where_every_view_sees_them_over_it():
+    """Window-bright floaters 1.0-1.1 m in front of the window, past the prism the fit's
+    window may stray into: every view that frames them sees the window behind them, so
+    they are its light too (a probe beside a shaded room's window saw them as a fog). A
+    bright thing as far out to the side, which the views see against the wall, stays."""
+    scene, window, tail = scene_with_window()
+    rng = np.random.default_rng(11)
+    n = 8
+    floaters = np.column_stack([2.5 - rng.uniform(1.0, 1.1, n),
+                                CENTRE[1] + rng.uniform(-0.1, 0.1, n),
+                                CENTRE[2] - 0.15 + rng.uniform(-0.03, 0.03, n)])
+    aside = np.array([[1.2, 1.6, 0.9]])
+    extra = SplatScene.from_activated(
+        np.concatenate([floaters, aside]), np.full((n + 1, 3), 16.0),
+        np.full((n + 1, 3), 0.03), np.full(n + 1, 0.2))
+    head = scene.subset(np.arange(scene.count - tail))
+    back = scene.subset(np.arange(scene.count - tail, scene.count))
+    from gaslight_usd.fit.backdrop import concatenate
+    from gaslight_usd.fit.flat_redraw import seen_over
+
+    full = concatenate(concatenate(head, extra), back)
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    np.testing.assert_array_equal(seen_over(panel(), np.concatenate([floaters, aside]),
+                                            cams, 0.2), [True] * n + [False])
+    out, report = redraw_flat_lights(full, [panel()], [window], cams, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail)
+    assert len(report.panels) == 1
+    kept = {tuple(p) for p in out.positions.round(5).tolist()}
+    stored = full.positions.round(5).tolist()
+    assert not any(tuple(p) in kept for p in stored[head.count:head.count + n])
+    assert tuple(stored[head.count + n]) in kept
+    before, after = sums(full, cams), sums(out, cams)
+    assert abs(after.sum() / before.sum() - 1.0) < 0.01

@@ -24,13 +24,14 @@ session 50). A rectangle one view alone outlined takes that view's reading, abov
 sums or below: one view cannot place the fit's splats of the light (they spread along its
 rays, and of ``panels:7``'s second panel half fell outside its rectangle: its sums said
 half its level; ``docs/measurements.md``, session 51). Then the splats over the white
-floating in front of the rectangle, within its prism, that are not another light many
-times brighter (:data:`LAMP_RATIO`), join it and the level is solved again: a fit leaves
-window-bright floaters there that every view sees over the window, and a probe beside it
-sees a fog. The fit redraws only lights a view measured (a true HDR view, merged
-brackets, a darker frame: :func:`gaslight_usd.fit.power.light_sighting`): where every
-photo clipped a window its power is the uplift's fill, a lower bound, and drawn flat it
-lost more of it near by.
+floating in front of the rectangle, within its prism (up to :data:`OFF_SHARE` of the
+median depth off it, and farther out where every view that frames them sees the rectangle
+behind them: :func:`seen_over`), that are not another light many times brighter
+(:data:`LAMP_RATIO`), join it and the level is solved again: a fit leaves window-bright
+floaters there that every view sees over the window, and a probe beside it sees a fog.
+The fit redraws only lights a view measured (a true HDR view, merged brackets, a darker
+frame: :func:`gaslight_usd.fit.power.light_sighting`): where every photo clipped a window
+its power is the uplift's fill, a lower bound, and drawn flat it lost more of it near by.
 
 ``gaslight2usd bench --suite chain`` measures it at the probes 0.5 m from the windows
 (``irradiance_psnr``, ``power_err_window``; ``docs/measurements.md``, sessions 49-50).
@@ -208,6 +209,33 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
     return level, with_level, keep, len(grid[0]), source
 
 
+def seen_over(panel: Panel, points: np.ndarray, cameras: Sequence[PinholeCamera],
+              margin: float = 0.0) -> np.ndarray:
+    """Per point (N, 3) in front of ``panel``: at least one of ``cameras`` frames it, and
+    every one that does sees ``panel`` (its rectangle grown by ``margin``) behind it."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    framed = np.zeros(len(points), np.int64)
+    backed = np.ones(len(points), bool)
+    if not len(points):
+        return backed
+    plane = float(panel.centre @ panel.normal)
+    for cam in cameras:
+        uv, z = cam.project(points)
+        inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < cam.width) & (uv[:, 1] >= 0) \
+            & (uv[:, 1] < cam.height)
+        ray = points - cam.center
+        along = ray @ panel.normal
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (plane - float(cam.center @ panel.normal)) / along
+        hit = cam.center + s[:, None] * ray
+        rel = hit - panel.centre
+        on = ((s > 1.0) & (np.abs(rel @ panel.u) <= panel.half_size[0] + margin)
+              & (np.abs(rel @ panel.v) <= panel.half_size[1] + margin))
+        framed += inside
+        backed &= ~inside | on
+    return backed & (framed > 0)
+
+
 def _framing(panel: Panel, cameras: Sequence[PinholeCamera]) -> list[PinholeCamera]:
     """The cameras in front of ``panel`` whose frame holds its centre."""
     out = []
@@ -279,8 +307,13 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         # photos bound them only from below, every view sees them over the window, and
         # a probe beside it sees a fog; a lamp there (another light, many times brighter)
         # is not
-        ahead = (halo & (d > 0) & (d <= OFF_SHARE * median_depth)
-                 & (radiance > max(white, HALO_SHARE * solved[0])) & ~replace)
+        lit = halo & (d > 0) & (radiance > max(white, HALO_SHARE * solved[0])) & ~replace
+        ahead = lit & (d <= OFF_SHARE * median_depth)
+        # farther out, those every view that frames them sees over the light: what the
+        # photos say of them is the light's, and a probe by the window saw them as a fog
+        # (window-bright floaters 0.6-0.8 m in front of a shaded room's window)
+        far = np.flatnonzero(lit & ~ahead)
+        ahead[far[seen_over(panel, pos[far], cameras, edge)]] = True
         for extra in others:
             if len(extra) and np.median(radiance[extra]) > LAMP_RATIO * solved[0]:
                 ahead[extra] = False
