@@ -311,7 +311,7 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         ahead = lit & (d <= OFF_SHARE * median_depth)
         # farther out, those every view that frames them sees over the light: what the
         # photos say of them is the light's, and a probe by the window saw them as a fog
-        # (window-bright floaters 0.6-0.8 m in front of a shaded room's window)
+        # (window-bright floaters 0.6-1.2 m in front of the bulb and shaded rooms' windows)
         far = np.flatnonzero(lit & ~ahead)
         ahead[far[seen_over(panel, pos[far], cameras, edge)]] = True
         for extra in others:
