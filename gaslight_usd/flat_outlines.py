@@ -78,13 +78,16 @@ MIN_FILL = 0.8
 MAX_OUTLINES = 32
 """Kept, the most lit cells first: a speckled set's photos clip hundreds of specks, and
 the splats' metadata carries them."""
-DEPTH_SWEEP = 0.05
+DEPTH_SWEEP = 0.1
 """Each region's plane is swept this share of the cameras' distance either way: the room
 box's plane, fitted to the whole wall or ceiling, sat 5 cm under a ceiling panel, and
 seen from the side the views' outlines of it slid 7 cm apart (``docs/measurements.md``,
-session 50)."""
-DEPTH_STEPS = 10
-"""...in this many steps each way."""
+session 50); a ceiling few photos see, its points smeared from 2.4 to 3.2 m, was found
+9-14 cm under its panels (``panels:2``; session 62)."""
+DEPTH_STEPS = 20
+"""...in this many steps each way: steps of a two-hundredth of the distance (0.8 cm in a
+room's middle). In coarser steps the depth a clipped panel's halo picked, by chance, made
+its round outline fill its box like a panel's rectangle."""
 DEPTH_GAIN = 0.5
 """...and moved only where the views' outlines' centres spread less than this share of
 their spread on the room box's plane."""
@@ -273,13 +276,11 @@ def plane_outlines(planes: Sequence[tuple[np.ndarray, float]], cameras: Sequence
             if depth == offset:
                 region = labels[bu, bv] == lab
             else:
-                moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front)
-                near, n_near = ndimage.label(moved, structure=np.ones((3, 3)))
-                if not n_near:
+                moved = _moved_region(depth, normal, u, v, gu, gv, bu, bv, cameras, lit,
+                                      front)
+                if moved is None:
                     continue
-                counts = np.bincount(near.ravel(), minlength=n_near + 1)
-                counts[0] = 0
-                region = near == int(np.argmax(counts))
+                region, bu, bv = moved
             outline = _outline_of(region, gu[bu], gv[bv], cell, depth, normal, u, v)
             if outline is not None and _in_room(outline, planes, k):
                 out.append(outline)
@@ -342,6 +343,41 @@ def _votes(offset: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray, gu: 
     return (framed >= MIN_VIEWS) & (seen >= LIT_SHARE * np.maximum(framed, 1))
 
 
+GROW_TIMES = 4
+"""A region looked up on a moved plane has its window grown (doubled) at most this many
+times where the lit cells reach its side (:func:`_moved_region`)."""
+
+
+def _moved_region(depth: float, normal: np.ndarray, u: np.ndarray, v: np.ndarray,
+                  gu: np.ndarray, gv: np.ndarray, bu: slice, bv: slice,
+                  cameras: Sequence[PinholeCamera], lit: Sequence[np.ndarray | None],
+                  front: np.ndarray) -> tuple[np.ndarray, slice, slice] | None:
+    """The largest lit region (:func:`_votes`) on the plane moved to ``depth``, within
+    the window ``bu``, ``bv`` of the grid (cell centres ``gu``, ``gv``), grown where the
+    region reaches its side: the window was drawn round what the views agreed on at the
+    room box's depth, and on a plane 14 cm off, the views' outlines slid apart, that was
+    a third of the panel (session 62). (region mask, window) or None where nothing is lit."""
+    nu, nv = len(gu), len(gv)
+    for attempt in range(GROW_TIMES + 1):
+        moved = _votes(depth, normal, u, v, gu[bu], gv[bv], cameras, lit, front)
+        near, n_near = ndimage.label(moved, structure=np.ones((3, 3)))
+        if not n_near:
+            return None
+        counts = np.bincount(near.ravel(), minlength=n_near + 1)
+        counts[0] = 0
+        region = near == int(np.argmax(counts))
+        rows, cols = np.nonzero(region)
+        grow_u, grow_v = bu.stop - bu.start, bv.stop - bv.start
+        wider = (slice(max(0, bu.start - grow_u * (rows.min() == 0)),
+                       min(nu, bu.stop + grow_u * (rows.max() == region.shape[0] - 1))),
+                 slice(max(0, bv.start - grow_v * (cols.min() == 0)),
+                       min(nv, bv.stop + grow_v * (cols.max() == region.shape[1] - 1))))
+        if wider == (bu, bv) or attempt == GROW_TIMES:
+            break
+        bu, bv = wider
+    return region, bu, bv
+
+
 def _single_view_regions(framed: np.ndarray, seen: np.ndarray, which: np.ndarray,
                          good: np.ndarray) -> list[np.ndarray]:
     """Masks of the lit regions one view alone frames (module docstring,
@@ -385,16 +421,16 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
     uu, vv = np.meshgrid(gu, gv, indexing="ij")
     flat = np.stack([uu.ravel(), vv.ravel()], axis=1)
     steps = np.linspace(-DEPTH_SWEEP, DEPTH_SWEEP, 2 * DEPTH_STEPS + 1) * distance
-    lit_cells = []  # per step, per view: its lit cells; None where it frames part only
+    lit_cells = []  # per step, per view: its lit cells; None where its frame cuts them
     for step in steps:
         base = (offset + step) * normal
         row: list[np.ndarray | None] = []
         for cam, mask, ahead in zip(cameras, lit, front, strict=True):
             inside, value = (grid_look_up(cam, mask, base, u, v, gu, gv)
                              if ahead and mask is not None else (None, None))
-            row.append(value if inside is not None and inside.all() else None)
+            row.append(None if inside is None else _uncut(inside, value, len(gu), len(gv)))
         lit_cells.append(row)
-    # one set of views at every depth, each framing the whole grid and seeing the light
+    # one set of views at every depth, each seeing the light whole
     chosen = [k for k in range(len(cameras))
               if all(row[k] is not None and row[k].sum() >= MIN_CELLS for row in lit_cells)]
     if len(chosen) < MIN_VIEWS:
@@ -415,6 +451,18 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
     if spreads[best] > DEPTH_GAIN * spreads[DEPTH_STEPS]:
         return offset
     return float(offset + steps[best])
+
+
+def _uncut(inside: np.ndarray, value: np.ndarray, nu: int, nv: int) -> np.ndarray | None:
+    """A view's lit cells of a grid (``inside``: the cells it frames, raveled ``(nu,
+    nv)``), or None where its frame's edge touches them: a light the frame cuts has its
+    centre moved by the cut, not by the plane's depth. Framing the whole grid was asked
+    once, and a sweep wide enough for a ceiling 14 cm off lost a view whose frame only
+    cut the grid's margin at the far depths (``panels:7``)."""
+    if inside.all():
+        return value
+    outside = ndimage.binary_dilation(~inside.reshape(nu, nv), np.ones((3, 3), bool))
+    return None if bool((outside.ravel() & value).any()) else value
 
 
 def _in_room(outline: Outline, planes: Sequence[tuple[np.ndarray, float]], k: int) -> bool:
