@@ -8,6 +8,7 @@ import pytest
 from gaslight_usd.fit.data import scale_camera_to
 from gaslight_usd.fit.frames_meet import (
     BULB_SHARE,
+    frame_and_seed,
     frames_meeting,
     measuring_sightings,
     meeting_point,
@@ -133,3 +134,32 @@ def test_the_fits_two_lobes_under_the_bulb_move_onto_it_and_the_glow_stays():
     assert np.linalg.norm(bulb.mean(axis=0) - BULB) < 0.01
     assert np.linalg.norm(bulb - BULB, axis=1).max() < 3 * meeting.radius
     np.testing.assert_array_equal(moved.positions[len(lobes):], fit.positions[len(lobes):])
+
+
+def test_one_frame_puts_the_bulb_where_its_line_passes_the_seed_and_draws_the_streak_in():
+    """One darker frame 2.5 m off cannot say how far along its line the bulb is; the
+    photos' seed, placed from places apart, can. The fit's streak along the frame's line
+    (what the frame sees as one bulb) is drawn onto it."""
+    eye = BULB + np.array([2.4, -0.7, 0.3])
+    cam = aimed_camera(eye, BULB, 0.6, SIZE)
+    seed = BULB + np.array([0.0, 0.02, 0.015])  # the seed a couple of cm off
+    sightings = measuring_sightings(seed, 0.05, [cam], _measured(_bulb_under_a_ceiling(BULB),
+                                                                [cam]), [None], Y709, WHITE)
+    assert len(sightings) == 1 and frames_meeting(sightings) is None
+    meeting = frame_and_seed(sightings, seed, 0.05)
+    assert meeting is not None and meeting.views == [0]
+    assert np.linalg.norm(meeting.position - BULB) < 0.025
+    sight = (BULB - eye) / np.linalg.norm(BULB - eye)
+    along = np.linspace(-0.15, 0.15, 31)
+    streak = BULB + along[:, None] * sight
+    fit = SplatScene.from_activated(streak, np.full((len(streak), 3), meeting.peak),
+                                    np.full((len(streak), 3), 0.01), np.full(len(streak), 0.3))
+    moved, info, rows = moved_to_meeting(fit, np.arange(len(streak)), meeting, Y709)
+    assert info.moved == len(streak)
+    # drawn in to the radius the frame measured (its blob's, a few pixels: 6 cm here)
+    spread = np.linalg.norm(moved.positions - meeting.position, axis=1)
+    assert np.sqrt(np.mean(spread ** 2)) == pytest.approx(meeting.radius, rel=0.02)
+    assert meeting.radius < 0.07 and spread.max() < 0.11
+    # a seed farther off the frame's line than its size is some other light
+    assert frame_and_seed(sightings, BULB + np.array([0.0, 0.2, 0.0]), 0.05) is None
+    assert frame_and_seed([], seed, 0.05) is None

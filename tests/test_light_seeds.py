@@ -307,3 +307,28 @@ def test_a_clipped_lamp_a_darker_frame_measured_is_matched_to_that_frame_alone()
     assert len(seeds) == 1 and np.linalg.norm(seeds[0].position - LAMP) < 0.05
     assert seed_views == [[len(views)]]
     assert trainer(views, floors)._lights_dark_frames_measured()[0] == []
+
+
+def test_a_far_bulbs_candidates_placed_beside_a_taken_light_are_that_light():
+    """A bulb 4.2 m off, seen by a photo and its darker frame from one place and two
+    photos 14 and 28 degrees round: the views' rays, a pixel off each, meet in candidates
+    along their lines; one far enough from the light first taken to stand alone was placed
+    8-13 cm from it, a second light in a streak along the rays (``hall:9``: three)."""
+    bulb = np.array([0.0, 2.3, 0.0])
+    eyes = []
+    for a in np.radians([0.0, 0.0, 14.0, 28.0]):
+        d = np.array([np.cos(a), -0.12, np.sin(a)])
+        eyes.append(bulb + 4.2 * d / np.linalg.norm(d))
+    cams = [aimed_camera(e, bulb, 1.0, 120) for e in eyes]
+    rng = np.random.default_rng(9)
+    axes = []
+    for cam in cams:
+        d = (bulb - cam.center) / np.linalg.norm(bulb - cam.center)
+        off = np.radians(0.6) * rng.normal(size=3)
+        d = d + off - (off @ d) * d
+        axes.append(d / np.linalg.norm(d))
+    cones = Sightings(np.array([c.center for c in cams]), np.arange(4), np.array(axes),
+                      np.full(4, np.radians(1.0)), np.ones(4, bool), np.ones(4), 1.0)
+    seeds = seed_lights(cones, cams)
+    assert len(seeds) == 1
+    assert np.linalg.norm(seeds[0].position - bulb) < 0.25

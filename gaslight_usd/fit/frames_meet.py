@@ -22,6 +22,11 @@ shade's glow at the opening hid it from below: the fit had made a lid of it), an
 at the end; :mod:`.fine_power` then matches the bulb alone to those frames, and clears
 what hid it from them. Measured by ``gaslight2usd bench --suite chain --scene shade:7
 --method "recursive + extra dark frames"`` (``docs/measurements.md``, session 59).
+
+A bare bulb one darker frame measured is placed likewise where that frame's line passes
+the light the clipped photos seeded from places apart (:func:`frame_and_seed`): left
+where the fit put it, its splats lay along the frame's line, one bulb to the frame and a
+streak 10-25 cm long to a probe beside it (session 62).
 """
 
 from __future__ import annotations
@@ -165,6 +170,35 @@ def frames_meeting(sightings: list[Sighting]) -> Meeting | None:
         return None
     return Meeting(point, radius, [s.view for s in sightings],
                    float(max(s.peak for s in sightings)))
+
+
+def frame_and_seed(sightings: list[Sighting], seed: np.ndarray, seed_size: float
+                   ) -> Meeting | None:
+    """Where one frame's sight line passes the light seeded at ``seed`` (``seed_size``
+    its radius; placed from the photos' clipped outlines, :mod:`.light_seeds`): the
+    point on the line nearest the seed, at the radius the frame measured. Of several
+    ``sightings`` (that did not meet: :func:`frames_meeting`), the line nearest the
+    seed; None where it misses the seed by more than its size.
+
+    One frame cannot say how far along its line the bulb is, and the fit spreads the
+    bulb's splats along it: the frame sees them as one, a probe 0.5 m from the bulb as a
+    streak round it, a third to a half more light than the bulb (``hall:9``, ``bulb:11``:
+    ``gaslight2usd bench --suite chain``). The photos that clipped it placed the seed
+    from places apart."""
+    if not sightings:
+        return None
+    seed = np.asarray(seed, np.float64)
+
+    def gap(s: Sighting) -> float:
+        rel = seed - s.origin
+        return float(np.linalg.norm(rel - (rel @ s.direction) * s.direction))
+
+    best = min(sightings, key=gap)
+    along = float((seed - best.origin) @ best.direction)
+    if along <= 0 or gap(best) > seed_size:
+        return None
+    point = best.origin + along * best.direction
+    return Meeting(point, along * math.tan(best.radius_rad), [best.view], best.peak)
 
 
 def moved_to_meeting(scene: SplatScene, rows: np.ndarray, meeting: Meeting,

@@ -224,11 +224,21 @@ def seed_lights(sightings: Sightings, cameras: list[PinholeCamera],
         if placed is None:
             continue
         seed, framing = placed
-        if _seen_elsewhere(seed, framing, seeds, sightings.origins):
+        if _seen_elsewhere(seed, framing, seeds, sightings.origins) or _beside_taken(seed, seeds):
             continue
         taken |= np.linalg.norm(points - seed.position, axis=1) <= MERGE_SIZES * seed.size
         seeds.append(seed)
     return seeds
+
+
+def _beside_taken(seed: LightSeed, taken: list[LightSeed]) -> bool:
+    """Whether ``seed`` was placed within :data:`MERGE_SIZES` of a ``taken`` light's
+    sizes of it: a candidate far enough from that light to stand alone can still be
+    placed beside it, where the rays of views seeing one bulb from far off (4 m, a pixel
+    each at ``fast``) meet along their lines; ``hall:9``'s bulb was seeded three times, 9
+    and 15 cm apart, and fitted as a streak through it."""
+    return any(float(np.linalg.norm(seed.position - other.position)) <= MERGE_SIZES * other.size
+               for other in taken)
 
 
 def _seen_elsewhere(seed: LightSeed, framing: set[int], taken: list[LightSeed],

@@ -55,7 +55,12 @@ from .exposure_check import exposure_outliers
 from .fine_power import MIN_VIEWS, FinePower, matched_light, measuring_views, with_fine_power
 from .flat_redraw import Redrawn, redraw_flat_lights
 from .frame_edge import CutLight, cut_lights, white_ratios
-from .frames_meet import frames_meeting, measuring_sightings, moved_to_meeting
+from .frames_meet import (
+    frame_and_seed,
+    frames_meeting,
+    measuring_sightings,
+    moved_to_meeting,
+)
 from .holes import fill_holes
 from .init import initial_points, neighbour_scales
 from .light_seeds import (
@@ -839,9 +844,10 @@ class Trainer:
                           ) -> tuple[SplatScene, list[LightSeed], list[list[int]],
                                      list[np.ndarray | None]]:
         """Each light two or more darker frames measured, its bulb moved where their
-        sight lines meet (:mod:`.frames_meet`), its seed put there at the radius they
-        measured and its views made those frames (to be matched to them); the others as
-        they were. The last list
+        sight lines meet (:mod:`.frames_meet`), one frame measured, where its line passes
+        the seed (:func:`.frames_meet.frame_and_seed`); its seed put there at the radius
+        they measured and its views made those frames (to be matched to them); the
+        others as they were. The last list
         holds, for each light so placed, its bulb's splats ((N,) mask): only those are
         the light; the rest the seed held (the glow the photos saw at a shade's
         opening) may be cleared from in front of it, as the frames saw through it."""
@@ -853,8 +859,14 @@ class Trainer:
         y = self.y_weights.cpu().numpy()
         seeds, seed_views = list(seeds), list(seed_views)
         for k, seed in enumerate(seeds):
-            meeting = frames_meeting(measuring_sightings(seed.position, seed.size, views,
-                                                         images, floors, y, white))
+            sightings = measuring_sightings(seed.position, seed.size, views, images, floors,
+                                            y, white)
+            meeting = frames_meeting(sightings)
+            if meeting is None and not on_a_plane(seed.position, 2.0 * seed.size,
+                                                  self.room_planes):
+                # one frame and the seed; not a light flush with a wall or the ceiling (a
+                # panel: its splats are its rectangle, not a bulb's ball)
+                meeting = frame_and_seed(sightings, seed.position, seed.size)
             if meeting is None:
                 continue
             rows = np.flatnonzero(bright & (np.linalg.norm(
