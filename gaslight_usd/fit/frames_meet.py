@@ -205,8 +205,8 @@ def moved_to_meeting(scene: SplatScene, rows: np.ndarray, meeting: Meeting,
                      y_weights: np.ndarray) -> tuple[SplatScene, Meeting, np.ndarray]:
     """``scene`` with the splats of ``rows`` that read at least :data:`BULB_SHARE` of the
     frames' peak (the bulb) moved to ``meeting``: their weighted centre onto it, drawn
-    together so that their spread is no wider than the radius the frames measured; and
-    the indices of the bulb's splats."""
+    together along each of their principal axes to no more than a ball of the radius the
+    frames measured (RMS); and the indices of the bulb's splats."""
     rows = np.asarray(rows, np.int64)
     lum = scene.base_colours[rows] @ np.asarray(y_weights, np.float64)
     bulb = rows[lum >= BULB_SHARE * meeting.peak]
@@ -215,12 +215,18 @@ def moved_to_meeting(scene: SplatScene, rows: np.ndarray, meeting: Meeting,
     weight = (scene.base_colours[bulb] @ np.asarray(y_weights, np.float64)) * \
         scene.opacities[bulb] * np.prod(scene.scales[bulb], axis=1) ** (2.0 / 3.0)
     pos = scene.positions[bulb].astype(np.float64)
-    centre = weight @ pos / max(float(weight.sum()), 1e-30)
-    spread = float(np.sqrt(weight @ np.sum((pos - centre) ** 2, axis=1)
-                           / max(float(weight.sum()), 1e-30)))
-    shrink = min(1.0, meeting.radius / spread) if spread > 0 else 1.0
+    total = max(float(weight.sum()), 1e-30)
+    centre = weight @ pos / total
+    rel = pos - centre
+    # each principal axis drawn in to the radius's share (a ball of that RMS radius): a
+    # cluster only scaled down keeps its shape, and one along a frame's line hides itself
+    # from that frame, which it is matched to, more than from a probe beside it
+    variance, axes = np.linalg.eigh((rel * weight[:, None]).T @ rel / total)
+    share = meeting.radius / math.sqrt(3.0)
+    shrink = np.minimum(1.0, share / np.sqrt(np.maximum(variance, 1e-30)))
     positions = scene.positions.copy()
-    positions[bulb] = (meeting.position + (pos - centre) * shrink).astype(positions.dtype)
+    positions[bulb] = (meeting.position + ((rel @ axes) * shrink) @ axes.T
+                       ).astype(positions.dtype)
     moved = replace(meeting, moved=int(len(bulb)),
                     shift=float(np.linalg.norm(meeting.position - centre)))
     return replace(scene, positions=positions, metadata=dict(scene.metadata)), moved, bulb
