@@ -414,8 +414,9 @@ def _agreeing_offset(offset: float, normal: np.ndarray, u: np.ndarray, v: np.nda
                      distance: float) -> float | None:
     """The plane offset within :data:`DEPTH_SWEEP` of the cameras' ``distance`` where the
     views' lit regions on the grid (cell centres ``gu``, ``gv``) coincide: the least spread
-    of their centres, over the views that frame the whole grid (seen from apart, the
-    views' outlines on a plane at the wrong depth slide apart). ``offset`` unless that
+    of their centres, over the views that see the light whole at every depth (their frame
+    not touching it: :func:`_uncut`; seen from apart, the views' outlines on a plane at
+    the wrong depth slide apart). ``offset`` unless that
     spread is under :data:`DEPTH_GAIN` of the spread there; None where those views stand
     in one place (:data:`PLACES_APART`)."""
     uu, vv = np.meshgrid(gu, gv, indexing="ij")

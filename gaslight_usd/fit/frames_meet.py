@@ -182,8 +182,8 @@ def frame_and_seed(sightings: list[Sighting], seed: np.ndarray, seed_size: float
 
     One frame cannot say how far along its line the bulb is, and the fit spreads the
     bulb's splats along it: the frame sees them as one, a probe 0.5 m from the bulb as a
-    streak round it, a third to a half more light than the bulb (``hall:9``, ``bulb:11``:
-    ``gaslight2usd bench --suite chain``). The photos that clipped it placed the seed
+    streak round it, a third to two thirds more light than the bulb (``hall:9``,
+    ``bulb:11``: ``gaslight2usd bench --suite chain``). The photos that clipped it placed the seed
     from places apart."""
     if not sightings:
         return None
