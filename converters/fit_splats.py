@@ -227,7 +227,8 @@ def fit(ctx: StageContext) -> StageResult:
                                    "backdrop_splats", "exposure_outliers",
                                    "single_view_lights", "pose_agreement", "cut_lights",
                                    "clipped_lights", "fine_power", "placed_by_frames",
-                                   "room_box", "lit_floor", "holes_filled")},
+                                   "room_box", "lit_floor", "holes_filled",
+                                   "fog_dropped")},
     )
 
 

@@ -89,6 +89,7 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     # what the fit did to its measured lights is reported; no darker frames, none placed
     assert isinstance(fit_stage["metrics"]["fine_power"], list)
     assert fit_stage["metrics"]["placed_by_frames"] == []
+    assert fit_stage["metrics"]["fog_dropped"] == 0  # fog is dropped where views clipped
     assert not list(tmp_path.glob(".*checkpoint*"))
 
 

@@ -54,6 +54,7 @@ from .data import FitData
 from .exposure_check import exposure_outliers
 from .fine_power import MIN_VIEWS, FinePower, matched_light, measuring_views, with_fine_power
 from .flat_redraw import Redrawn, redraw_flat_lights
+from .fog import fog_splats
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .frames_meet import (
     frame_and_seed,
@@ -231,6 +232,8 @@ class Trainer:
         self.frames_met: list[dict[str, Any]] = []
         """The bulbs :meth:`_placed_by_frames` moved at the end (reported likewise)."""
         self.holes_filled: dict[str, Any] = {"splats": 0, "freed": 0, "empty_pixels": {}}
+        self.fog_dropped = 0
+        """Splats dropped as fog midway (:meth:`_drop_fog`)."""
         """What :meth:`_fill_holes` added (reported with the fit's metrics)."""
         self._reset_stats()
 
@@ -301,6 +304,7 @@ class Trainer:
                 "history": self.history, "elapsed": self.elapsed,
                 "floaters_moved": self.floaters_moved,
                 "holes_filled": self.holes_filled,
+                "fog_dropped": self.fog_dropped,
                 "room_planes": [asdict(plane) for plane in self.room_planes],
                 "lit_floor": self.lit_floor_info,
                 "poses": self.refiner.state_dict() if self.refiner else None,
@@ -323,6 +327,7 @@ class Trainer:
         self.floaters_moved = int(state.get("floaters_moved", 0))
         self.frames_met = []  # filled at the end, after any checkpoint
         self.holes_filled = state.get("holes_filled", {"splats": 0, "freed": 0, "empty_pixels": {}})
+        self.fog_dropped = int(state.get("fog_dropped", 0))
         self.room_planes = [Plane(**plane) for plane in state.get("room_planes", [])]
         self.lit_floor_info = state.get("lit_floor")
         self.planes = (PlanePrior.from_state(state["planes"], self.device)
@@ -413,6 +418,22 @@ class Trainer:
         return weight * torch.clamp(radiance / weight.clamp_min(1e-12) / self.mean_level,
                                     min=1.0)
 
+    def _drop_fog(self) -> None:
+        """Drop the broad faint splats in the room's open air (:mod:`.fog`) while the fit
+        has steps left to refit the room without them. Only where views clipped: measured
+        on the README's capture; fits of true HDR views or merged brackets are left as
+        they were."""
+        if not self.room_planes or self._view_whites(self.train) is None:
+            return
+        fog = fog_splats(self.model.to_scene(self.active_degree(), {}), self.room_planes,
+                         self.extent)
+        if not fog.any():
+            return
+        self.model.prune(torch.as_tensor(fog, device=self.device))
+        if self.planes is not None:
+            self._assign_planes()
+        self.fog_dropped = int(fog.sum())
+
     def _prune_idle(self) -> int:
         """Prune splats that contribute next to nothing to the training views
         (:meth:`_contribution_scores`)."""
@@ -480,6 +501,7 @@ class Trainer:
             if self.step == self._floaters_step():
                 self._surface_floaters()
                 self._bulbs_to_frames_midway()
+                self._drop_fog()
                 self._fill_holes()  # densification has covered what it can by now
             self.progress.update(self.step, self.cfg.iterations, loss=loss,
                                  splats=self.model.count)
@@ -1134,6 +1156,7 @@ class Trainer:
                                 self.floaters_moved},
             "broad_lights_on_walls": on_walls.as_dict(),
             "flat_lights_redrawn": redrawn.as_dict(),
+            "fog_dropped": self.fog_dropped,
             "holes_filled": self.holes_filled,
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
