@@ -103,6 +103,21 @@ def test_a_view_that_clipped_the_lamp_but_filled_it_under_its_white_is_not_again
     assert not clipped_at(lamp.position[None], cams, peaks)[0, v]
 
 
+def _cones_at(bulb: np.ndarray, cams: list, seed: int, radius_deg: float) -> Sightings:
+    """Each view's outline of ``bulb`` as a cone ``radius_deg`` wide whose centroid ray
+    misses it by a fraction of a degree (0.6 degrees, random)."""
+    rng = np.random.default_rng(seed)
+    axes = []
+    for cam in cams:
+        d = (bulb - cam.center) / np.linalg.norm(bulb - cam.center)
+        off = np.radians(0.6) * rng.normal(size=3)
+        d = d + off - (off @ d) * d
+        axes.append(d / np.linalg.norm(d))
+    n = len(cams)
+    return Sightings(np.array([c.center for c in cams]), np.arange(n), np.array(axes),
+                     np.full(n, np.radians(radius_deg)), np.ones(n, bool), np.ones(n), 1.0)
+
+
 def test_a_bulbs_outlines_meeting_again_along_their_rays_make_one_light():
     """Four nearby views frame a bulb (a dark frame among them outlines it too); their
     centroid rays miss it by a fraction of a degree, so three of them also meet 0.19 m
@@ -112,16 +127,7 @@ def test_a_bulbs_outlines_meeting_again_along_their_rays_make_one_light():
     bulb = np.array([0.0, 1.0, 3.0])
     cams = [aimed_camera(np.array([x, 1.0, 0.0]), bulb, 0.75, 160)
             for x in (-0.75, -0.25, 0.25, 0.75)]
-    rng = np.random.default_rng(2)
-    axes = []
-    for cam in cams:
-        d = (bulb - cam.center) / np.linalg.norm(bulb - cam.center)
-        off = np.radians(0.6) * rng.normal(size=3)
-        d = d + off - (off @ d) * d
-        axes.append(d / np.linalg.norm(d))
-    cones = Sightings(np.array([c.center for c in cams]), np.arange(4), np.array(axes),
-                      np.full(4, np.radians(1.5)), np.ones(4, bool), np.ones(4), 1.0)
-    seeds = seed_lights(cones, cams)
+    seeds = seed_lights(_cones_at(bulb, cams, 2, 1.5), cams)
     assert len(seeds) == 1
     assert np.linalg.norm(seeds[0].position - bulb) < 0.1
 
@@ -320,15 +326,6 @@ def test_a_far_bulbs_candidates_placed_beside_a_taken_light_are_that_light():
         d = np.array([np.cos(a), -0.12, np.sin(a)])
         eyes.append(bulb + 4.2 * d / np.linalg.norm(d))
     cams = [aimed_camera(e, bulb, 1.0, 120) for e in eyes]
-    rng = np.random.default_rng(9)
-    axes = []
-    for cam in cams:
-        d = (bulb - cam.center) / np.linalg.norm(bulb - cam.center)
-        off = np.radians(0.6) * rng.normal(size=3)
-        d = d + off - (off @ d) * d
-        axes.append(d / np.linalg.norm(d))
-    cones = Sightings(np.array([c.center for c in cams]), np.arange(4), np.array(axes),
-                      np.full(4, np.radians(1.0)), np.ones(4, bool), np.ones(4), 1.0)
-    seeds = seed_lights(cones, cams)
+    seeds = seed_lights(_cones_at(bulb, cams, 9, 1.0), cams)
     assert len(seeds) == 1
     assert np.linalg.norm(seeds[0].position - bulb) < 0.25
