@@ -91,6 +91,7 @@ from .planes import (
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, light_sighting, lights_to_weigh
 from .presets import FitConfig
+from .sheets import SHEET_THIN_SHARE, sheet_splats, squashed
 from .single_view import BRIGHT_RATIO, single_view_lights
 from .sunk_lights import RULES, SurfacedLights, surface_sunk_lights
 from .triangulate import triangulate_views
@@ -433,6 +434,15 @@ class Trainer:
         if self.planes is not None:
             self._assign_planes()
         self.fog_dropped = int(fog.sum())
+
+    def _squash_onto_planes(self, scene: SplatScene) -> tuple[SplatScene, int]:
+        """The splats on the room's walls and ceiling squashed flat onto their planes
+        (:mod:`.sheets`), lights left as they are; returns the scene and how many."""
+        if not self.room_planes:
+            return scene, 0
+        rows, normals = sheet_splats(scene, self.room_planes, self.extent,
+                                     exempt=self._bright_splats(scene))
+        return squashed(scene, rows, normals, SHEET_THIN_SHARE * self.extent)
 
     def _prune_idle(self) -> int:
         """Prune splats that contribute next to nothing to the training views
@@ -1093,6 +1103,7 @@ class Trainer:
         pruned = self._prune_idle()
         degree, scores = self._choose_degree()
         scene = self.model.to_scene(degree, {})
+        scene, sheets = self._squash_onto_planes(scene)
         scene, surfaced = self._surface_sunk_lights(scene)
         scene, fine = self._fine_power(scene)
         cams = self.cameras()
@@ -1127,7 +1138,7 @@ class Trainer:
         if cfg.redraw_flat_lights:
             scene, redrawn = self._redraw_flat_lights(scene, backdrop.count, outlines, lights)
         scene, oversized = self._cut_oversized(scene, backdrop.count)
-        if (backdrop.count or lights or surfaced.moved or on_walls.moved
+        if (sheets or backdrop.count or lights or surfaced.moved or on_walls.moved
                 or oversized["splats"] or redrawn.panels) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
@@ -1157,6 +1168,7 @@ class Trainer:
             "broad_lights_on_walls": on_walls.as_dict(),
             "flat_lights_redrawn": redrawn.as_dict(),
             "fog_dropped": self.fog_dropped,
+            "squashed_onto_planes": sheets,
             "holes_filled": self.holes_filled,
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
