@@ -90,6 +90,9 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     assert isinstance(fit_stage["metrics"]["fine_power"], list)
     assert fit_stage["metrics"]["placed_by_frames"] == []
     assert fit_stage["metrics"]["fog_dropped"] == 0  # fog is dropped where views clipped
+    # this small set has no room box: no wall or ceiling to squash its splats onto
+    assert fit_stage["metrics"]["room_box"] == []
+    assert fit_stage["metrics"]["squashed_onto_planes"] == 0
     assert not list(tmp_path.glob(".*checkpoint*"))
 
 
