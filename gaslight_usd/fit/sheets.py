@@ -4,8 +4,8 @@ squashed flat onto it at the end of the fit.
 A fit draws a wall or a ceiling with round splats a few centimetres thick about its
 plane: seen square on they add up to the surface, but seen at a grazing angle the ones in
 front stand up from it like pebbles and hide what is flush with it. From true HDR views a
-ceiling panel read 0.42 stops short from a probe that saw it 10 degrees up: splats 15 cm
-round, 4 cm below the ceiling and 1.1 m nearer the probe, covered its near half.
+ceiling panel read 0.42 stops short from a probe that saw it 10 degrees up: the ceiling's
+splats 1.1-2.1 m nearer the probe, 13-17 cm round and 4 cm below it, hid a quarter of it.
 
 Each splat whose centre is within :data:`SHEET_BAND_SHARE` of the scene's extent of a
 plane of the room's box (:func:`gaslight_usd.fit.planes.room_box`), and that is not a
