@@ -321,6 +321,14 @@ def _run_processes(scenes: list[Scene], jobs: int, started: Started, finished: F
             with contextlib.suppress(ProcessLookupError):
                 os.kill(entry["proc"].pid, signal.SIGINT)
         deadline = time.monotonic() + STOP_GRACE_SECONDS
+        # read each outcome as it comes: a child blocks in its send while the pipe is full,
+        # and joined before it is read it would be killed at the deadline as "died"
+        unread = {e["reader"]: e for e in running.values() if e["outcome"] is None}
+        while unread and time.monotonic() < deadline:
+            for obj in wait(list(unread), timeout=max(0.0, deadline - time.monotonic())):
+                entry = unread.pop(obj)
+                with contextlib.suppress(EOFError, OSError):  # EOF: it died without one
+                    entry["outcome"] = obj.recv()
         for entry in running.values():
             entry["proc"].join(max(0.0, deadline - time.monotonic()))
             if entry["proc"].is_alive():
