@@ -3,9 +3,9 @@ squashed flat onto it at the end of the fit.
 
 A fit draws a wall or a ceiling with round splats a few centimetres thick about its
 plane: seen square on they add up to the surface, but seen at a grazing angle the ones in
-front stand up from it like pebbles and hide what is flush with it. From true HDR views a
-ceiling panel read 0.42 stops short from a probe that saw it 10 degrees up: the ceiling's
-splats 1.1-2.1 m nearer the probe, 13-17 cm round and 4 cm below it, hid a quarter of it.
+front stand up from it like pebbles and hide what is flush with it: from true HDR views a
+probe low under the ceiling saw a ceiling panel partly hidden by the ceiling's own round
+splats in front of it (``docs/measurements.md``, session 63).
 
 Each splat whose centre is within :data:`SHEET_BAND_SHARE` of the scene's extent of a
 plane of the room's box (:func:`gaslight_usd.fit.planes.room_box`), and that is not a
@@ -64,10 +64,9 @@ def squashed(scene: SplatScene, rows: np.ndarray, normals: np.ndarray, thin: flo
     over = thick > thin * (1.0 + 1e-3)  # float32 round trip: a squashed one stays squashed
     if not over.any():
         return scene, 0
-    k = np.where(over, thin / thick, 1.0)
-    a = np.eye(3)[None] - (1.0 - k)[:, None, None] * np.einsum("ni,nj->nij", normals, normals)
-    cov = a @ cov @ np.transpose(a, (0, 2, 1))
-    w, v = np.linalg.eigh(cov[over])
+    n, k = normals[over], thin / thick[over]
+    a = np.eye(3)[None] - (1.0 - k)[:, None, None] * np.einsum("ni,nj->nij", n, n)
+    w, v = np.linalg.eigh(a @ cov[over] @ np.transpose(a, (0, 2, 1)))
     v[np.linalg.det(v) < 0, :, 0] *= -1.0  # a proper rotation
     out = scene.subset(np.arange(scene.count))
     pick = rows[over]
