@@ -91,6 +91,7 @@ from .planes import (
 from .pose_refine import PoseRefiner
 from .power import LightPower, infer_light_power, light_sighting, lights_to_weigh
 from .presets import FitConfig
+from .shade_bands import ClosedBand, box_vertical, close_hidden_bands
 from .sheets import SHEET_THIN_SHARE, sheet_splats, squashed
 from .single_view import BRIGHT_RATIO, single_view_lights
 from .sunk_lights import RULES, SurfacedLights, surface_sunk_lights
@@ -841,6 +842,38 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used, cleared))
         return with_fine_power(scene, lights), lights
 
+    def _close_shaded_sides(self, scene: SplatScene, fine: list[FinePower]
+                            ) -> tuple[SplatScene, list[ClosedBand]]:
+        """The elevations round each light drawn fine (:meth:`_fine_power`) where the
+        frames saw its bulb hidden, closed on the sides no photo saw
+        (:mod:`.shade_bands`); lights on a plane of the room's box (panels, windows)
+        left as they are."""
+        if not fine:
+            return scene, []
+        # the lights' rows as they were before the splats cleared from in front of them
+        cleared = np.unique(np.concatenate(
+            [light.cleared for light in fine if light.views and len(light.rows)]
+            + [np.zeros(0, np.int64)])).astype(np.int64)
+        dropped = np.zeros(scene.count + len(cleared), bool)
+        dropped[cleared] = True
+        new_index = np.cumsum(~dropped) - 1
+        lights = [new_index[light.rows[~dropped[light.rows]]] for light in fine
+                  if len(light.rows) and not on_a_plane(light.position, 0.05 * self.extent,
+                                                        self.room_planes)]
+        if not lights:
+            return scene, []
+        cams = self.cameras()
+        up = np.mean([-cams[i].R[1] for i in self.train], axis=0)
+        vertical = box_vertical(self.room_planes, up)
+        if vertical is None:
+            vertical = room_vertical(np.asarray(self._init_model().points, np.float64), up,
+                                     np.random.default_rng([self.seed, 13]))
+        return close_hidden_bands(scene, lights, self._bright_splats(scene),
+                                  [cams[i] for i in self.train],
+                                  [self.data.images[i] for i in self.train],
+                                  [self.data.floor(i) for i in self.train],
+                                  self.y_weights.cpu().numpy(), vertical)
+
     def _bright_splats(self, scene: SplatScene) -> np.ndarray:
         """(N,) splats brighter than a measured light must be
         (:data:`MEASURED_LIGHT_RATIO` x the views' median level)."""
@@ -1106,6 +1139,7 @@ class Trainer:
         scene, sheets = self._squash_onto_planes(scene)
         scene, surfaced = self._surface_sunk_lights(scene)
         scene, fine = self._fine_power(scene)
+        scene, shaded = self._close_shaded_sides(scene, fine)
         cams = self.cameras()
         backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
                                    cfg.backdrop_tiles, room=cfg.budget - scene.count,
@@ -1138,7 +1172,7 @@ class Trainer:
         if cfg.redraw_flat_lights:
             scene, redrawn = self._redraw_flat_lights(scene, backdrop.count, outlines, lights)
         scene, oversized = self._cut_oversized(scene, backdrop.count)
-        if (sheets or backdrop.count or lights or surfaced.moved or on_walls.moved
+        if (sheets or shaded or backdrop.count or lights or surfaced.moved or on_walls.moved
                 or oversized["splats"] or redrawn.panels) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
@@ -1169,6 +1203,7 @@ class Trainer:
             "flat_lights_redrawn": redrawn.as_dict(),
             "fog_dropped": self.fog_dropped,
             "squashed_onto_planes": sheets,
+            "shaded_sides_closed": [band.as_dict() for band in shaded],
             "holes_filled": self.holes_filled,
             "single_view_lights": [light.as_dict() for light in self._single_view_lights(
                 scene.subset(np.arange(scene.count - backdrop.count)), cams)],
