@@ -228,7 +228,8 @@ def fit(ctx: StageContext) -> StageResult:
                                    "single_view_lights", "pose_agreement", "cut_lights",
                                    "clipped_lights", "fine_power", "placed_by_frames",
                                    "room_box", "lit_floor", "holes_filled",
-                                   "fog_dropped", "squashed_onto_planes")},
+                                   "fog_dropped", "squashed_onto_planes",
+                                   "shaded_sides_closed")},
     )
 
 
