@@ -124,7 +124,8 @@ def fibonacci_directions(n: int) -> np.ndarray:
 
 
 def _frame_to_up(up: np.ndarray) -> np.ndarray:
-    """A rotation taking +Y to ``up`` (rows: the world's axes in the frame's)."""
+    """A rotation taking +Y to ``up`` (its columns: the frame's x, up and z in the
+    world)."""
     up = np.asarray(up, np.float64) / np.linalg.norm(up)
     a = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
     x = np.cross(up, a)
@@ -236,9 +237,10 @@ def close_hidden_bands(scene: SplatScene, lights: list[np.ndarray], light_mask: 
                        cameras: list[PinholeCamera], images: list[np.ndarray],
                        floors: list[np.ndarray | None], y_weights: np.ndarray,
                        up: np.ndarray) -> tuple[SplatScene, list[ClosedBand]]:
-    """``scene`` with each light's hidden elevations closed all round (:func:`band_shell`)
-    by the discs none of ``cameras`` (the training views) sees, appended after its
-    splats; and the bands closed (those with discs kept)."""
+    """``scene`` with each light's hidden elevations closed on its unseen sides
+    (:func:`band_shell`) by the discs ``cameras`` (the training views) would not fit
+    better without, appended after its splats; and the bands closed (those with discs
+    kept)."""
     shells, bands = [], []
     for rows in lights:
         discs, band = band_shell(scene, rows, light_mask, cameras, images, floors,
