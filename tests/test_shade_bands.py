@@ -12,6 +12,7 @@ import numpy as np
 import torch
 from test_flat_outlines import look_at
 
+from gaslight_usd.fit.contribution import removal_gains
 from gaslight_usd.fit.planes import Plane
 from gaslight_usd.fit.shade_bands import box_vertical, close_hidden_bands
 from gaslight_usd.render import render
@@ -133,3 +134,19 @@ def test_the_rooms_vertical_comes_from_its_box_not_the_cameras_lean():
     # two parallel walls, or no box: nothing to go by
     assert box_vertical([walls[0], plane([-0.003, 0.001, -1.0])], leaning) is None
     assert box_vertical([], leaning) is None
+
+
+def test_removal_gains_say_which_splats_the_photos_would_rather_lose():
+    """A grey splat over a dark photo is one the view fits better without; over a photo
+    of that grey, one it needs; a view that sees neither counts for nothing."""
+    scene = SplatScene.from_activated(np.array([[-0.6, 0.0, 5.0], [0.6, 0.0, 5.0]]),
+                                      np.full((2, 3), 0.5), np.full((2, 3), 0.15),
+                                      np.full(2, 0.95))
+    cam = look_at([0.0, 0.0, 0.0], [0.0, 0.0, 5.0])
+    photo = np.full((cam.height, cam.width, 3), 0.01, np.float32)
+    photo[:, cam.width // 2:] = 0.5  # the right half is the grey splat's
+    away = look_at([0.0, 0.0, 0.0], [0.0, 0.0, -5.0])
+    gain = removal_gains(SplatParams.from_scene(scene), [cam, away], [photo, photo],
+                         [None, None], 0, torch.as_tensor(WEIGHTS, dtype=torch.float32))
+    left, right = gain.numpy()
+    assert left > 0 > right  # +x is the image's right: the second splat is on the grey

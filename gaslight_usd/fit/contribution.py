@@ -55,6 +55,8 @@ def removal_gains(params: SplatParams, cameras: list[PinholeCamera], images: lis
     for cam, image, floor in zip(cameras, images, floors, strict=True):
         proj = project(p.means, p.quats, p.log_scales, p.opacity_logits, p.sh, cam,
                        sh_degree=sh_degree)
+        if not len(proj.index):
+            continue  # nothing in this view: nothing to gain or lose
         factor = torch.ones_like(proj.opacities, requires_grad=True)
         proj.opacities = proj.opacities.detach() * factor
         proj.colours = proj.colours.detach()
