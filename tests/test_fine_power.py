@@ -9,6 +9,7 @@ from gaslight_usd.fit.fine_power import (
     TOLERANCE_STOPS,
     FinePower,
     matched_light,
+    rows_after,
     with_fine_power,
 )
 from gaslight_usd.fit.gather import aimed_camera
@@ -184,3 +185,16 @@ def test_a_clipped_bulb_a_darker_frame_measured_is_matched_to_that_frame():
                                     min_views=1)
     assert used == 1
     np.testing.assert_allclose(np.log2(factor), -np.log2(1.4), atol=0.05)
+
+
+def test_a_lights_rows_follow_it_past_the_splats_cleared_in_front_of_it():
+    pos = np.column_stack([np.arange(10.0), np.zeros(10), np.zeros(10)])
+    scene = SplatScene.from_activated(pos, np.ones((10, 3)), np.full((10, 3), 0.1),
+                                      np.full(10, 0.9))
+    light = FinePower(np.zeros(3), np.array([5, 6, 7]), 2.0, 1, np.array([1, 2, 8]))
+    idle = FinePower(np.zeros(3), np.array([9]), 1.0, 0, np.array([0]))  # no views: kept
+    out = with_fine_power(scene, [light, idle])
+    rows = rows_after([light, idle], scene.count)
+    np.testing.assert_array_equal(rows[0], [3, 4, 5])
+    np.testing.assert_array_equal(out.positions[rows[0]], scene.positions[[5, 6, 7]])
+    np.testing.assert_array_equal(out.positions[rows[1]], scene.positions[[9]])

@@ -199,14 +199,30 @@ def matched_light(scene: SplatScene, rows: np.ndarray, centre: np.ndarray, size:
     return 2.0**stops, len(factors), np.flatnonzero(cleared)
 
 
+def _cleared(count: int, lights: list[FinePower]) -> np.ndarray:
+    """(count,) the splats :func:`with_fine_power` leaves out of a scene of ``count``."""
+    drop = np.zeros(count, bool)
+    for light in lights:
+        if light.views and len(light.rows):
+            drop[light.cleared] = True
+    return drop
+
+
 def with_fine_power(scene: SplatScene, lights: list[FinePower]) -> SplatScene:
     """``scene`` with each light's splats brightened by its factor and the splats cleared
     from in front of it left out (they hid it from its views; the room has nothing there)."""
     sh = scene.sh.copy()
-    drop = np.zeros(scene.count, bool)
     for light in lights:
         if light.views and len(light.rows):
             sh[light.rows] = scaled_sh(scene.sh[light.rows], light.factor)
-            drop[light.cleared] = True
+    drop = _cleared(scene.count, lights)
     out = replace(scene, sh=sh, metadata=dict(scene.metadata))
     return out.subset(np.flatnonzero(~drop)) if drop.any() else out
+
+
+def rows_after(lights: list[FinePower], count: int) -> list[np.ndarray]:
+    """Each light's rows in the scene :func:`with_fine_power` returns, from a scene of
+    ``count`` splats (its rows are the scene's before the clearing)."""
+    drop = _cleared(count, lights)
+    new_index = np.cumsum(~drop) - 1
+    return [new_index[light.rows[~drop[light.rows]]] for light in lights]

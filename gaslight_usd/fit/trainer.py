@@ -52,7 +52,14 @@ from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
 from .exposure_check import exposure_outliers
-from .fine_power import MIN_VIEWS, FinePower, matched_light, measuring_views, with_fine_power
+from .fine_power import (
+    MIN_VIEWS,
+    FinePower,
+    matched_light,
+    measuring_views,
+    rows_after,
+    with_fine_power,
+)
 from .flat_redraw import Redrawn, redraw_flat_lights
 from .fog import fog_splats
 from .frame_edge import CutLight, cut_lights, white_ratios
@@ -842,24 +849,15 @@ class Trainer:
             lights.append(FinePower(seed.position, rows, factor, used, cleared))
         return with_fine_power(scene, lights), lights
 
-    def _close_shaded_sides(self, scene: SplatScene, fine: list[FinePower]
-                            ) -> tuple[SplatScene, list[ClosedBand]]:
-        """The elevations round each light drawn fine (:meth:`_fine_power`) where the
-        frames saw its bulb hidden, closed on the sides no photo saw
-        (:mod:`.shade_bands`); lights on a plane of the room's box (panels, windows)
-        left as they are."""
-        if not fine:
-            return scene, []
-        # the lights' rows as they were before the splats cleared from in front of them
-        cleared = np.unique(np.concatenate(
-            [light.cleared for light in fine if light.views and len(light.rows)]
-            + [np.zeros(0, np.int64)])).astype(np.int64)
-        dropped = np.zeros(scene.count + len(cleared), bool)
-        dropped[cleared] = True
-        new_index = np.cumsum(~dropped) - 1
-        lights = [new_index[light.rows[~dropped[light.rows]]] for light in fine
-                  if len(light.rows) and not on_a_plane(light.position, 0.05 * self.extent,
-                                                        self.room_planes)]
+    def _close_shaded_sides(self, scene: SplatScene, fine: list[FinePower],
+                            rows: list[np.ndarray]) -> tuple[SplatScene, list[ClosedBand]]:
+        """The elevations round each light drawn fine (:meth:`_fine_power`; ``rows``: its
+        splats in ``scene``) where the frames saw its bulb hidden, closed on the sides no
+        photo saw (:mod:`.shade_bands`); lights on a plane of the room's box (panels,
+        windows) left as they are."""
+        lights = [own for light, own in zip(fine, rows, strict=True)
+                  if len(own) and not on_a_plane(light.position, 0.05 * self.extent,
+                                                 self.room_planes)]
         if not lights:
             return scene, []
         cams = self.cameras()
@@ -1138,8 +1136,9 @@ class Trainer:
         scene = self.model.to_scene(degree, {})
         scene, sheets = self._squash_onto_planes(scene)
         scene, surfaced = self._surface_sunk_lights(scene)
+        before = scene.count
         scene, fine = self._fine_power(scene)
-        scene, shaded = self._close_shaded_sides(scene, fine)
+        scene, shaded = self._close_shaded_sides(scene, fine, rows_after(fine, before))
         cams = self.cameras()
         backdrop = unseen_backdrop(scene, [cams[i] for i in self.train],
                                    cfg.backdrop_tiles, room=cfg.budget - scene.count,
