@@ -19,6 +19,7 @@ from gaslight_usd.bench.dark_frames import (
     dark_exposure,
     dark_frame_photos,
     poses_with_dark_frames,
+    truth_with_extra_views,
 )
 from gaslight_usd.bench.suite_chain import scene_lights
 from gaslight_usd.colour import convert
@@ -167,3 +168,24 @@ def test_a_shaded_room_rendered_without_its_frames_from_below_is_rendered_again(
     bare["lights"] = [dict(li, shaded=False) for li in info["lights"]]
     (folder / "scene.json").write_text(json.dumps(bare))
     assert not lacks_frames_from_below(folder)  # no shade: nothing to shoot from below
+
+
+def test_the_true_hdr_ceiling_fits_the_viewpoints_the_capture_adds(tmp_path):
+    """The chain bench's ``truth HDR`` fits the true views from every viewpoint the
+    README's capture photographs: the extra view's truth, posed where it was rendered,
+    beside the level views; the fit data pairs each with its pose. A scene without extra
+    views is its own truth and poses."""
+    from gaslight_usd.fit.data import load_fit_data
+
+    folder, _, lamp, cam = scene_with_extra_view(tmp_path)
+    hdr, poses = truth_with_extra_views(folder, tmp_path / "work")
+    levels = sorted(p.name for p in (EXAMPLE / "truth").glob("*.exr"))
+    assert sorted(p.name for p in hdr.glob("*.exr")) == sorted([*levels, "below_00.exr"])
+    data = load_fit_data(hdr, poses, working_size=64)
+    k = data.names.index("below_00")
+    np.testing.assert_allclose(data.cameras[k].center, cam.center, atol=1e-9)
+    twin = data.names.index(cam.name.replace(".jpg", ""))
+    np.testing.assert_array_equal(data.images[k], data.images[twin])
+    assert len(data.cameras) == len(levels) + 1
+    assert truth_with_extra_views(EXAMPLE, tmp_path / "bare") == (
+        EXAMPLE / "truth", EXAMPLE / "sparse" / "0")

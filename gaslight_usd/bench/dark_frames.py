@@ -233,3 +233,25 @@ def poses_with_dark_frames(folder: Path, chosen: dict[str, dict[str, Any]], out:
                           t=np.asarray(what["tvec"], np.float64))
         added.append((cam, k))
     return write_poses(out, with_added_images(model, added))
+
+
+def truth_with_extra_views(folder: Path, out: Path) -> tuple[Path, Path]:
+    """(HDR views folder, poses folder) of the scene's true HDR views and its
+    ``extra_views``' (a view from below a shaded lamp) at their poses, under ``out``: the
+    ceiling for a capture that adds darker frames from those viewpoints, which without
+    them would score a fit that never saw a shaded bulb (the level views all look at its
+    shade). A scene without extra views gives its own ``truth`` and poses."""
+    info = json.loads((folder / "scene.json").read_text())
+    extra = info.get("extra_views", [])
+    if not extra:
+        return folder / "truth", folder / "sparse" / "0"
+    hdr = out / "truth"
+    hdr.mkdir(parents=True, exist_ok=True)
+    for view in [*sorted((folder / "truth").glob("*.exr")),
+                 *(folder / v["truth"] for v in extra)]:
+        link = hdr / view.name
+        if not link.exists():
+            link.symlink_to(view.resolve())
+    posed = {v["name"]: {"of": None, "qvec": list(v["qvec"]), "tvec": list(v["tvec"])}
+             for v in extra}
+    return hdr, poses_with_dark_frames(folder, posed, out / "sparse")

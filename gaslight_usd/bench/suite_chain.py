@@ -9,7 +9,8 @@ rendered into ``<out>/scenes/`` the first time, about 2-3 min each on 2 cores, 1
 a ``room`` draw's 24 photos at 480 x 360). For every scene the chain runs from its LDR
 photos with the true poses (so the uplift and the fit are measured, not SfM), once per method:
 
-* ``truth HDR`` -- the fit from the true HDR views: the ceiling of what the fit can do;
+* ``truth HDR`` -- the fit from the true HDR views: the ceiling of what the fit can do
+  (with the scene's ``extra_views``, the viewpoints the README's capture adds, below);
 * ``clipped photos`` -- the photos linearised, clipped lights left clipped (and not
   weighed by the surfaces they light): the floor;
 * ``recursive`` -- GaSLight's recursive uplift (fast predictor), clipped pixels fitted
@@ -547,7 +548,10 @@ def fitted_scene(folder: Path, method: str, work: Path, preset_name: str, seed: 
         method = method.removesuffix(suffix)
     poses = folder / "sparse" / "0"
     if method == "truth HDR":
-        hdr, scale = folder / "truth", 1.0
+        from .dark_frames import truth_with_extra_views
+
+        hdr, poses = truth_with_extra_views(folder, work)
+        scale = 1.0
     elif method in ("recursive + dark frames", "recursive + extra dark frames"):
         from .dark_frames import dark_frame_photos, poses_with_dark_frames
 
