@@ -64,6 +64,8 @@ from .flat_redraw import Redrawn, redraw_flat_lights
 from .fog import fog_splats
 from .frame_edge import CutLight, cut_lights, white_ratios
 from .frames_meet import (
+    WHITE_MULTIPLE,
+    bulb_sightings,
     frame_and_seed,
     frames_meeting,
     measuring_sightings,
@@ -819,10 +821,9 @@ class Trainer:
             return scene, []
         y = self.y_weights.cpu().numpy()
         bright = self._bright_splats(scene)
-        bulbs: list[np.ndarray | None] = [None] * len(seeds)
-        if min_views == 1:  # lights darker frames measured: two may place theirs
-            scene, seeds, seed_views, bulbs = self._placed_by_frames(scene, seeds,
-                                                                     seed_views, bright)
+        # two frames that measured a light may place its bulb where their lines meet
+        scene, seeds, seed_views, bulbs = self._placed_by_frames(scene, seeds, seed_views,
+                                                                 bright)
         cams = self.cameras()
         walls = on_planes(scene, self.room_planes)
         own = [bright & (np.linalg.norm(scene.positions - seed.position, axis=1)
@@ -884,9 +885,13 @@ class Trainer:
         the fit still has steps to go (:meth:`_placed_by_frames`): moved at the end, the
         room round them was fitted to a bulb drawn elsewhere (a shade's side fitted
         see-through where the bulb was drawn under it)."""
-        if not self.cfg.fine_power or self._measured_lights():
+        if not self.cfg.fine_power:
             return
-        seeds, seed_views = self._lights_dark_frames_measured()
+        seeds = self._measured_lights()
+        if seeds:
+            seed_views = [[i for i in seed.views if i in self.train] for seed in seeds]
+        else:
+            seeds, seed_views = self._lights_dark_frames_measured()
         if not seeds:
             return
         scene = self.model.to_scene(self.active_degree(), {})
@@ -910,23 +915,35 @@ class Trainer:
         sight lines meet (:mod:`.frames_meet`), one frame measured, where its line passes
         the seed (:func:`.frames_meet.frame_and_seed`); its seed put there at the radius
         they measured and its views made those frames (to be matched to them); the
-        others as they were. The last list
+        others as they were. Where no view clipped, every view that framed a light
+        measured it: only a light some views read far dimmer than others (a shaded
+        bulb's glow) is placed, by the views that read it brightest
+        (:func:`.frames_meet.bulb_sightings`). The last list
         holds, for each light so placed, its bulb's splats ((N,) mask): only those are
         the light; the rest the seed held (the glow the photos saw at a shade's
         opening) may be cleared from in front of it, as the frames saw through it."""
         bulbs: list[np.ndarray | None] = [None] * len(seeds)
         training = self._training_views()
-        if training is None:
-            return scene, seeds, seed_views, bulbs
-        white, views, images, floors = training
+        unclipped = training is None
         y = self.y_weights.cpu().numpy()
+        if unclipped:  # a light measures where it reads over what a measured light must
+            cams = self.cameras()
+            training = (MEASURED_LIGHT_RATIO * measured_level(self.data.images, y)
+                        / WHITE_MULTIPLE, [cams[i] for i in self.train],
+                        [self.data.images[i] for i in self.train], [None] * len(self.train))
+        white, views, images, floors = training
         seeds, seed_views = list(seeds), list(seed_views)
         for k, seed in enumerate(seeds):
             sightings = measuring_sightings(seed.position, seed.size, views, images, floors,
                                             y, white)
+            if unclipped:
+                bulb_seen = bulb_sightings(sightings)
+                if len(bulb_seen) == len(sightings):
+                    continue  # all read it alike: nothing tells a bulb from its glow
+                sightings = bulb_seen
             meeting = frames_meeting(sightings)
-            if meeting is None and not on_a_plane(seed.position, 2.0 * seed.size,
-                                                  self.room_planes):
+            if meeting is None and not unclipped and not on_a_plane(
+                    seed.position, 2.0 * seed.size, self.room_planes):
                 # one frame and the seed; not a light flush with a wall or the ceiling (a
                 # panel: its splats are its rectangle, not a bulb's ball)
                 meeting = frame_and_seed(sightings, seed.position, seed.size)
