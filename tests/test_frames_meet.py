@@ -8,6 +8,7 @@ import pytest
 from gaslight_usd.fit.data import scale_camera_to
 from gaslight_usd.fit.frames_meet import (
     BULB_SHARE,
+    bulb_sightings,
     frame_and_seed,
     frames_meeting,
     measuring_sightings,
@@ -166,3 +167,31 @@ def test_one_frame_puts_the_bulb_where_its_line_passes_the_seed_and_draws_the_st
     # a seed farther off the frame's line than its size is some other light
     assert frame_and_seed(sightings, BULB + np.array([0.0, 0.2, 0.0]), 0.05) is None
     assert frame_and_seed([], seed, 0.05) is None
+
+
+def test_where_nothing_clipped_the_views_that_saw_only_a_shades_glow_do_not_place_it():
+    """True HDR views: two from below see the bulb (2,000), two level ones only the glow
+    at the shade's opening 12 cm under it (a tenth as bright). All four measured the
+    light; their lines meet nowhere near the bulb. Kept to the views that read it
+    brightest (the frames from below), they meet at the bulb."""
+    below = _frames_from_below()
+    glow_at = BULB + np.array([0.05, -0.12, 0.0])
+    glow = _bulb_under_a_ceiling(glow_at)
+    glow = SplatScene.from_activated(glow.positions, np.where(
+        glow.base_colours > 100.0, 200.0, glow.base_colours), glow.scales * np.where(
+        glow.base_colours[:, :1] > 100.0, 2.0, 1.0), glow.opacities,
+        metadata={"antialiased": True})
+    level = [aimed_camera(glow_at + np.array([dx, -0.35, 1.3]), glow_at, 0.6, SIZE)
+             for dx in (-0.8, 0.8)]
+    images = _measured(_bulb_under_a_ceiling(BULB), below) + _measured(glow, level)
+    sightings = measuring_sightings(BULB, 0.1, below + level, images, [None] * 4, Y709,
+                                    WHITE)
+    assert [s.view for s in sightings] == [0, 1, 2, 3]
+    everyone = frames_meeting(sightings)
+    assert everyone is None or np.linalg.norm(everyone.position - BULB) > 0.03
+    brightest = bulb_sightings(sightings)
+    assert [s.view for s in brightest] == [0, 1]
+    meeting = frames_meeting(brightest)
+    assert meeting is not None and np.linalg.norm(meeting.position - BULB) < 0.01
+    # a bare bulb every view read alike keeps every view
+    assert bulb_sightings(sightings[:2]) == sightings[:2]
