@@ -14,7 +14,7 @@ from test_flat_outlines import look_at
 
 from gaslight_usd.fit.contribution import removal_gains
 from gaslight_usd.fit.planes import Plane
-from gaslight_usd.fit.shade_bands import box_vertical, close_hidden_bands
+from gaslight_usd.fit.shade_bands import band_shell, box_vertical, close_hidden_bands
 from gaslight_usd.render import render
 from gaslight_usd.render.params import SplatParams
 from gaslight_usd.splats import SplatScene
@@ -26,7 +26,7 @@ UP = np.array([0.0, 1.0, 0.0])
 
 def lamp(shade: str) -> tuple[SplatScene, np.ndarray]:
     """The bulb's splats, then the shade's ("whole", "near": the photos' side only, the
-    far side faint, or "none"); the bulb's rows."""
+    far side faint, "faint": faint all round, or "none"); the bulb's rows."""
     rng = np.random.default_rng(5)
     bulb = BULB + rng.normal(0.0, 0.01, (40, 3))
     pos, rgb, opac = [bulb], [np.full((40, 3), 5000.0)], [np.full(40, 0.9)]
@@ -36,7 +36,7 @@ def lamp(shade: str) -> tuple[SplatScene, np.ndarray]:
         far = ring[:, 0] < -0.03  # the side no photo looks from
         pos.append(ring)
         rgb.append(np.full((len(ring), 3), 1.0))
-        opac.append(np.where(far & (shade == "near"), 0.05, 0.97))
+        opac.append(np.where((far & (shade == "near")) | (shade == "faint"), 0.05, 0.97))
     pos_a = np.concatenate(pos)
     scales = np.concatenate([np.full((40, 3), 0.008), np.full((len(pos_a) - 40, 3), 0.02)])
     return (SplatScene.from_activated(pos_a, np.concatenate(rgb), scales,
@@ -102,6 +102,60 @@ def test_the_unseen_side_of_a_shade_is_closed_where_the_frames_saw_the_bulb_hidd
         assert log_error(closed, truth, cam) <= log_error(fitted, truth, cam) + 1e-3
     below = look_at(BULB + 1.5 * np.array([0.3, -0.95, 0.1]), BULB)
     np.testing.assert_allclose(bulb_light(closed, below), bulb_light(fitted, below), rtol=0.01)
+
+
+def test_a_shade_the_fit_drew_too_faint_to_hide_the_bulb_is_closed_in_the_photos_colour():
+    """True HDR views' fits drew the shade's outside thin: nothing opaque lies on the
+    frames' lines, and the fit shows them the bulb they saw hidden. Those readings still
+    count; the discs take the colour the side frames saw there (the shade, with a little
+    of the bulb through it)."""
+    truth, _ = lamp("whole")
+    fitted, rows = lamp("faint")
+    cams = photos()
+    closed, bands = close(fitted, rows, truth, cams)
+    assert len(bands) == 1 and bands[0].hidden_views >= 3 and bands[0].discs > 100
+    discs = closed.subset(np.arange(fitted.count, closed.count))
+    seen = []
+    for cam in cams[:4]:
+        (x, y), = cam.project(BULB[None])[0]
+        seen.append(draw(truth, cam)[int(y), int(x)])
+    np.testing.assert_allclose(discs.base_colours, np.tile(np.median(seen, axis=0),
+                                                           (discs.count, 1)), rtol=0.1)
+    assert float(discs.base_colours.max()) < 3.0  # the shade, not the bulb
+    e = np.radians(-16)
+    probe = look_at(BULB + 1.5 * np.array([-np.cos(e), np.sin(e), 0.0]), BULB)
+    leaked, shut, real = (bulb_light(s, probe) for s in (fitted, closed, truth))
+    assert leaked > 100 * real and shut < 3 * real
+
+
+def test_a_bulb_hidden_by_something_far_from_it_closes_nothing():
+    """A board 1.2 m out hides a bare bulb from the side frames (furniture, not a shade):
+    nothing near the bulb hid it, so no side of it is closed."""
+    bare, rows = lamp("none")
+    g = np.linspace(-1.0, 1.0, 41)
+    gu, gv = np.meshgrid(g, g)
+    board = np.column_stack([np.full(gu.size, 1.2), BULB[1] - 0.3 + gv.ravel(), gu.ravel()])
+    scene = SplatScene.from_activated(
+        np.concatenate([bare.positions, board]),
+        np.concatenate([bare.base_colours, np.full((len(board), 3), 0.5)]),
+        np.concatenate([bare.scales, np.full((len(board), 3), 0.04)]),
+        np.concatenate([bare.opacities, np.full(len(board), 0.99)]))
+    cams = photos()
+    assert all(bulb_light(scene, cam) < 1e-2 * bulb_light(bare, cam) for cam in cams[:4])
+    images = [draw(scene, cam) for cam in cams]
+    bright = scene.base_colours @ WEIGHTS > 100.0
+    discs, band = band_shell(scene, rows, bright, cams, images, [None] * len(cams),
+                             WEIGHTS, UP)
+    assert discs is None and band is None
+    # drawn 0.1 m from the bulb instead, the same board is what hid it: closed
+    near = scene.positions.copy()
+    near[bare.count:, 0] = 0.1
+    near_board = SplatScene.from_activated(near, scene.base_colours, scene.scales,
+                                           scene.opacities)
+    images = [draw(near_board, cam) for cam in cams]
+    discs, band = band_shell(near_board, rows, bright, cams, images, [None] * len(cams),
+                             WEIGHTS, UP)
+    assert band is not None and band.hidden_views >= 3
 
 
 def test_a_bare_bulb_and_a_light_no_frame_measured_are_left_as_they_are():

@@ -10,7 +10,7 @@ Lamps are round about the vertical. An elevation (seen from the bulb, about the 
 vertical) within :data:`BAND_DEG` of a frame that read the bulb hidden by something near
 it, and of none that read it seen, is closed all round on the sides no frame looked
 from (:data:`UNSEEN_DEG`): shells of opaque discs :data:`SHELL_RADII` bulb radii out, in
-the colour of what hid it. Discs the training views would fit better without
+the colour those frames saw there. Discs the training views would fit better without
 (:func:`.contribution.removal_gains`) are taken out, round after round. A bare bulb,
 seen from every elevation its frames had, is left as it is, and so is a light no
 unclipped frame measured (no darker frame): then nothing says what is hidden.
@@ -43,7 +43,9 @@ what hid it: the views see the inner ones through the shade's openings (taken ou
 outer ones outside the shade's far side are hidden behind it."""
 REACH_RADII = 8.0
 """A hidden reading counts where an opaque splat that is not a light lies this near the
-bulb (in bulb radii) on the frame's line: a shade, not a far piece of furniture."""
+bulb (in bulb radii) on the frame's line (a shade, not a far piece of furniture), or
+where none lies anywhere on it: the fit shows that frame the bulb it saw hidden (the
+true HDR views' fits drew a shade's outside too thin to hide it, session 65)."""
 OPAQUE = 0.3
 UNSEEN_DEG = 45.0
 """Directions this far from every frame that had the bulb in it are the unseen sides
@@ -182,7 +184,7 @@ def band_shell(scene: SplatScene, rows: np.ndarray, light_mask: np.ndarray,
     if radius <= 0.0:
         return None, None
     reach = REACH_RADII * radius
-    readings, clipped, towards, hider = [], [], [], []
+    readings, clipped, towards, hid_near, there = [], [], [], [], []
     offsets = scene.positions.astype(np.float64) - centre
     opaque = (scene.opacities > OPAQUE) & ~light_mask
     size = 1.5 * scene.scales.max(axis=1)
@@ -199,17 +201,21 @@ def band_shell(scene: SplatScene, rows: np.ndarray, light_mask: np.ndarray,
         towards.append(u)
         t = offsets @ u
         across = np.linalg.norm(offsets - t[:, None] * u, axis=1)
-        on = opaque & (t > 0) & (t < reach) & (across < size)
-        hider.append(int(np.flatnonzero(on)[np.argmin(t[on])]) if on.any() else -1)
+        on = opaque & (t > 0) & (across < size)
+        near = on & (t < reach)
+        # a frame's reading is the bulb hidden by something near it (True), by something
+        # far (False), or by nothing the fit drew (True)
+        hid_near.append(bool(near.any()) or not bool((on & (t < np.linalg.norm(
+            cam.center - centre))).any()))
+        there.append(np.asarray(image[i, j], np.float64))
     if not readings:
         return None, None
     readings_a, clipped_a = np.array(readings), np.array(clipped)
     if clipped_a.all():
         return None, None
     top = readings_a[~clipped_a].max()
-    hider_a = np.array(hider)
     seen = ~clipped_a & (readings_a >= SEEN_SHARE * top)
-    hidden = ~clipped_a & (readings_a < HIDDEN_SHARE * top) & (hider_a >= 0)
+    hidden = ~clipped_a & (readings_a < HIDDEN_SHARE * top) & np.array(hid_near)
     if not hidden.any():
         return None, None
     up = np.asarray(up, np.float64) / np.linalg.norm(up)
@@ -222,7 +228,9 @@ def band_shell(scene: SplatScene, rows: np.ndarray, light_mask: np.ndarray,
     closed &= (directions @ np.array(towards).T).max(axis=1) < np.cos(np.radians(UNSEEN_DEG))
     if not closed.any():
         return None, None
-    colour = np.median(scene.base_colours[hider_a[hidden]], axis=0)
+    # the colour those frames saw where the bulb hid (a splat on their line may be the
+    # shade's glow, seen from inside)
+    colour = np.median(np.array(there)[hidden], axis=0).astype(np.float32)
     shells = [_discs_facing(centre, directions[closed], k * radius, radius, colour,
                             scene.sh_degree) for k in SHELL_RADII]
     discs = shells[0]
