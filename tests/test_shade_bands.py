@@ -130,7 +130,8 @@ def test_a_shade_the_fit_drew_too_faint_to_hide_the_bulb_is_closed_in_the_photos
 
 def test_a_bulb_hidden_by_something_far_from_it_closes_nothing():
     """A board 1.2 m out hides a bare bulb from the side frames (furniture, not a shade):
-    nothing near the bulb hid it, so no side of it is closed."""
+    nothing near the bulb hid it, so no side of it is closed. The same board 0.1 m out
+    is what hid it: those frames count."""
     bare, rows = lamp("none")
     g = np.linspace(-1.0, 1.0, 41)
     gu, gv = np.meshgrid(g, g)
