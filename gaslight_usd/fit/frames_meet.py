@@ -25,11 +25,11 @@ what hid it from them. Measured by ``gaslight2usd bench --suite chain --scene sh
 
 Where no view clipped (true HDR views, merged brackets), every view that framed a shaded
 lamp measured it, most of them only the glow at its opening, and the fit drew the bulb
-there, 7 cm under it and a stop short at the probe under the lamp (``--method "truth
-HDR"`` with the views from below, session 65). So there the views that read the light at
-least :data:`GLOW_SHARE` of the brightest reading place it likewise, where some read it
-dimmer (:func:`bulb_sightings`); where all read it alike (a bare bulb) the fit's own
-placement from its many views stands.
+there, under it, short of its power below it (``gaslight2usd bench --suite chain --scene
+shade:7 --method "truth HDR"``; ``docs/measurements.md``, session 65). So there the views
+that read the light at least :data:`GLOW_SHARE` of the brightest reading place it
+likewise, where some read it dimmer (:func:`bulb_sightings`); where all read it alike (a
+bare bulb) the fit's own placement from its many views stands.
 A bare bulb one darker frame measured is placed likewise where that frame's line passes
 the light the clipped photos seeded from places apart (:func:`frame_and_seed`): left
 where the fit put it, its splats lay along the frame's line, one bulb to the frame and a
@@ -155,8 +155,8 @@ def bulb_sightings(sightings: list[Sighting]) -> list[Sighting]:
     """Of ``sightings`` of one light, those that read it at least :data:`GLOW_SHARE` of
     the brightest: the views that saw the bulb itself. Where nothing clipped, every view
     that framed a shaded lamp measured it, most of them only the glow of the shade's
-    inside at its opening, 10 times dimmer than the bulb through it from below
-    (``shade:7``'s true HDR views), and their lines of sight meet at the opening."""
+    inside at its opening, far dimmer than the bulb seen through it from below, and their
+    lines of sight meet at the opening."""
     top = max((s.peak for s in sightings), default=0.0)
     return [s for s in sightings if s.peak >= GLOW_SHARE * top]
 
