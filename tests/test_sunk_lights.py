@@ -200,6 +200,26 @@ def test_a_light_drawn_just_in_front_of_its_one_camera_is_put_on_the_ceiling(nea
     np.testing.assert_array_equal(out.positions[: fit.count - 5], fit.positions[: fit.count - 5])
 
 
+@pytest.mark.parametrize("planes", [(), (CEILING,)])
+def test_a_floater_under_a_ceiling_smeared_deep_stops_on_the_rooms_plane(planes):
+    """The near rule moves onto the captured space's boundary, which a ceiling few photos
+    see drags 0.5 m up (no other photo frames that place to say it is dark); given the
+    room's ceiling plane, the light stops where its ray crosses the plane."""
+    _, cams, images = _views()
+    fit = _with(_box(ceiling=3.5), _light(NEAR, 0.05))
+    whites = np.full(len(cams), WHITE)
+    sightings = sight_lights(cams, images, whites, Y709)
+    out, report = surface_sunk_lights(fit, cams, images, whites, Y709, sightings,
+                                      rules=frozenset({"near"}), planes=planes)
+    assert report.moved == 5
+    height = float(np.median(out.positions[-5:, 1]))
+    if planes:
+        assert height == pytest.approx(3.0, abs=0.06)
+        assert np.linalg.norm(out.positions[-5:].mean(0) - LIGHT) < 0.1
+    else:
+        assert height > 3.25
+
+
 def test_a_light_near_its_camera_whose_new_place_another_photo_saw_dark_stays():
     fit, _, (out, report) = _near_fit(True, aim_light_from_second=True)
     assert report.moved == 0 and report.refused == 5

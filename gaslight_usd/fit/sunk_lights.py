@@ -279,13 +279,17 @@ def _first_lit_along(eye: np.ndarray, pos: np.ndarray, start: np.ndarray, stop: 
 def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: np.ndarray,
                    space: CaptureSpace, cameras: list[PinholeCamera],
                    views: Sequence[np.ndarray | PeakMap], whites: np.ndarray,
-                   weights: np.ndarray) -> _Moves:
+                   weights: np.ndarray, planes: Sequence[Plane] = ()) -> _Moves:
     """Bright splats ``idx`` of compact outlines (``region``) lying in front of their
     photo's camera at under :data:`NEAR_SHARE` of the way to the room's boundary, moved
     onto it along their own rays, scales in proportion, where every photo framing the
     new place shows light there; where some photo saw it dark, to the first place
     farther along the ray, up to the splats' box, that no photo contradicts
-    (:func:`_first_lit_along`).
+    (:func:`_first_lit_along`). Never past the first of the room's ``planes`` the ray
+    crosses: the captured space's boundary at a ceiling few photos see is smeared deep,
+    and past the ceiling no other photo frames the place to contradict it (``panels:7``'s
+    ceiling panel from true HDR views, one fit: moved 0.4 m above the ceiling, where the
+    probes saw the ceiling instead; ``docs/measurements.md``, session 66).
 
     A light one photo sees keeps that photo's pixels at any depth, and the fit's cheapest
     way to draw it can be a few small splats just in front of the camera (``panels:7``'s
@@ -298,8 +302,11 @@ def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: n
         return _Moves.none()
     eye = eyes[region]
     ratio, ok = _boundary_along(space, eye, pos[idx])
+    wall = _first_plane_along(planes, eye, pos[idx])
+    ratio = np.minimum(ratio, wall)
     ok &= ratio * NEAR_SHARE > 1.0
-    stop = np.maximum(_box_exit(space.box, eye, pos[idx]), ratio)
+    stop = np.minimum(np.maximum(_box_exit(space.box, eye, pos[idx]), ratio),
+                      np.maximum(wall, ratio))
     ratio, go = _first_lit_along(eye, pos[idx], ratio, stop, cameras, views, whites, weights)
     go &= ok
     return _Moves(idx[go], eye[go], ratio[go], int((ok & ~go).sum()))
@@ -414,7 +421,7 @@ def surface_sunk_lights(scene: SplatScene, cameras: list[PinholeCamera],
     taken = np.concatenate([m.idx for m in moves])
     rest = held_c & ~np.isin(bright, taken)
     moves.append(_near_floaters(pos, bright[rest], near_c[rest], eyes, space, cameras, views,
-                                whites, weights) if "near" in rules else _Moves.none())
+                                whites, weights, planes) if "near" in rules else _Moves.none())
     idx = np.concatenate([m.idx for m in moves])
     if not len(idx):
         return scene, SurfacedLights(0, 0.0, 0.0, sum(m.refused for m in moves))
