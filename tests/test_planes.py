@@ -10,6 +10,7 @@ import torch
 from gaslight_usd.fit.planes import (
     Plane,
     PlanePrior,
+    ceiling_at_sparse_points,
     ceiling_from_walls,
     far_walls,
     find_planes,
@@ -182,6 +183,41 @@ def test_a_box_without_its_ceiling_gets_one_where_its_walls_stop():
     assert ceiling_from_walls(room_box(planes_full, len(full)), full, tau_full,
                               np.array([0.0, 1.0, 0.0])) is None
     assert ceiling_from_walls(box, pts, tau, np.zeros(3)) is None
+
+
+def _box_with_a_low_ceiling(rng):
+    """A room's box as the start's points gave it, its ceiling 12 cm low (the fill's
+    smear crowded there), and the sparse points: each wall's up to the ceiling, 20 on
+    the ceiling itself (3.0 m, 1 cm noise)."""
+    walls = [_plane([1.0, 0.0, 0.0], -2.5), _plane([-1.0, 0.0, 0.0], -2.5),
+             _plane([0.0, 0.0, 1.0], -2.0), _plane([0.0, 0.0, -1.0], -2.0)]
+    box = [*walls, _plane([0.0, 1.0, 0.0], 0.0), _plane([0.0, -1.0, 0.0], -2.88)]
+    sparse = []
+    for axis, value in ((0, -2.5), (0, 2.5), (2, -2.0), (2, 2.0)):
+        p = rng.uniform(ROOM_LO, ROOM_HI, (100, 3))
+        p[:, axis] = value
+        p[:, 1] = rng.uniform(2.0, 2.9, 100)  # the walls' tops, near the low ceiling
+        sparse.append(p)
+    top = rng.uniform([-1.8, 3.0, -1.4], [1.8, 3.0, 1.4], (20, 3))
+    top[:, 1] += rng.normal(0.0, 0.01, 20)
+    return box, np.concatenate(sparse), top
+
+
+def test_a_ceiling_found_low_in_the_fill_is_put_at_the_sparse_points_on_it():
+    rng = np.random.default_rng(8)
+    box, walls, ceiling = _box_with_a_low_ceiling(rng)
+    up, tau = np.array([0.05, 1.0, 0.0]), 0.07
+    moved = ceiling_at_sparse_points(box, np.concatenate([walls, ceiling]), tau, up)
+    assert -moved[-1].offset == pytest.approx(3.0, abs=0.01)
+    np.testing.assert_array_equal(moved[-1].normal, box[-1].normal)
+    # the walls and the floor are left as found
+    assert all(a is b for a, b in zip(moved[:-1], box[:-1], strict=True))
+    # the walls' own points near the ceiling are not the ceiling: without the points on
+    # the ceiling itself, or with too few of them, or without an up, it stays
+    for sparse in (walls, np.concatenate([walls, ceiling[:5]])):
+        assert ceiling_at_sparse_points(box, sparse, tau, up)[-1].offset == -2.88
+    assert ceiling_at_sparse_points(box, np.concatenate([walls, ceiling]), tau,
+                                    np.zeros(3))[-1].offset == -2.88
 
 
 def _room_with_a_window_wall(rng, window_wall_points: int, through_window: int = 0):

@@ -420,6 +420,52 @@ def ceiling_from_walls(box: list[Plane], points: np.ndarray, tau: float,
     return Plane(-vertical, -height, lo, hi, axes, 0)
 
 
+SPARSE_BAND = 3.0
+"""A ceiling's triangulated points are those within this many inlier distances of it...
+"""
+SPARSE_CLEAR = 3.0
+"""...and this many from every other plane of the box (a wall's top is no ceiling)..."""
+SPARSE_MIN = 8
+"""...and their median is the ceiling's height where at least this many are."""
+
+
+def ceiling_at_sparse_points(box: list[Plane], sparse: np.ndarray, tau: float,
+                             up: np.ndarray) -> list[Plane]:
+    """``box`` with its ceiling (a plane facing down along ``up``, the cameras' mean up)
+    at the median height of the triangulated ``sparse`` points on it, away from the walls.
+
+    The box's planes are found in the start's points, sparse and fill together, and a
+    ceiling few photos see is smeared deep in the fill: from photos the ``panels`` rooms'
+    fill crowded 9-12 cm under the ceiling, their panels were outlined on that plane and
+    drawn there, 0.4 stops too bright 0.5 m under them (``gaslight2usd bench --suite
+    chain``; ``docs/measurements.md``, session 66), while the sparse points on the
+    ceiling itself lay within a centimetre of it. The walls are left as found: photos
+    see them square on, and furniture stands in front of them."""
+    up = np.asarray(up, np.float64)
+    sparse = np.asarray(sparse, np.float64).reshape(-1, 3)
+    if not np.linalg.norm(up) or not len(sparse) or not box:
+        return box
+    up = up / np.linalg.norm(up)
+    out = []
+    for plane in box:
+        if plane.normal @ up > -(1 - OWN_TILT ** 2 / 2):
+            out.append(plane)
+            continue
+        height = sparse @ plane.normal - plane.offset
+        uv = sparse @ plane.axes.T
+        on = ((np.abs(height) < SPARSE_BAND * tau)
+              & np.all((uv >= plane.lo) & (uv <= plane.hi), axis=1))
+        for other in box:
+            if other is not plane:
+                on &= np.abs(sparse @ other.normal - other.offset) > SPARSE_CLEAR * tau
+        if on.sum() < SPARSE_MIN:
+            out.append(plane)
+            continue
+        out.append(Plane(plane.normal, float(plane.offset + np.median(height[on])),
+                         plane.lo, plane.hi, plane.axes, plane.points))
+    return out
+
+
 FAR_WALL_CROWD = 2.0
 """A room box's missing far wall is the offset where the points beyond the cameras crowd
 most, when it crowds at least this many times their median bin and the emptiest bin

@@ -89,6 +89,7 @@ from .planes import (
     KEEP_OUT_SIZES,
     Plane,
     PlanePrior,
+    ceiling_at_sparse_points,
     ceiling_from_walls,
     far_walls,
     find_planes,
@@ -214,13 +215,16 @@ class Trainer:
         """The room's box among the large planes of the initial points, along the sparse
         points' directions (:func:`.planes.room_box`, :func:`.planes.sparse_axes`), with
         the ceiling where its walls stop if none was found
-        (:func:`.planes.ceiling_from_walls`) and a window's wall too sparse to be found
+        (:func:`.planes.ceiling_from_walls`), the ceiling then put at the sparse points on
+        it (:func:`.planes.ceiling_at_sparse_points`), and a window's wall too sparse to be found
         (:func:`.planes.far_walls`) and a floor the views' lit patch pins
         (:mod:`.lit_floor`): the bound on a sunk light's move and the planes a window's
         splats are put on (:mod:`.sunk_lights`)."""
         ceiling = ceiling_from_walls(self.room_planes, pts, found[1], up)
         if ceiling is not None:
             self.room_planes.append(ceiling)
+        self.room_planes = ceiling_at_sparse_points(self.room_planes,
+                                                    self._init_model().points, found[1], up)
         self.room_planes += far_walls(self.room_planes, pts, centres, found[1], up)
         floor = floor_plane(self.lit_floor, self.room_planes, pts)
         if floor is not None:
