@@ -309,3 +309,39 @@ def test_floaters_farther_out_join_the_window_where_every_view_sees_them_over_it
     assert tuple(stored[head.count + n]) in kept
     before, after = sums(full, cams), sums(out, cams)
     assert abs(after.sum() / before.sum() - 1.0) < 0.01
+
+
+def test_a_wall_splat_in_front_of_the_windows_edge_is_set_behind_it():
+    """The wall's own splat 4 cm in front of it, centred 8 cm past the window's side but
+    wide enough to reach over it, hid a strip of the light from close by; after the
+    redraw it lies just behind the window's plane, in place across it, and the window
+    shows whole."""
+    from gaslight_usd.fit.backdrop import concatenate
+
+    scene, window, tail = scene_with_window()
+    edge = CENTRE + [-0.04, 0.0, HALF[0] + 0.08]
+    veil = SplatScene.from_activated(edge[None], np.full((1, 3), 0.3), np.full((1, 3), 0.15),
+                                     np.full(1, 0.95))
+    head = scene.subset(np.arange(scene.count - tail))
+    scene = concatenate(concatenate(head, veil), scene.subset(np.arange(scene.count - tail,
+                                                                         scene.count)))
+    cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
+                                         [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    out, report = redraw_flat_lights(scene, [panel()], [window], cams, white=1.0,
+                                     median_depth=2.5, weights=WEIGHTS, tail=tail)
+    entry = report.panels[0]
+    assert entry["set_behind"] == 1
+    moved = np.flatnonzero(np.all(np.isclose(out.positions[:, 1:], edge[1:]), axis=1)
+                           & (out.base_colours.max(axis=1) < 1.0))
+    assert len(moved) == 1
+    assert out.positions[moved[0], 0] > panel().centre[0]  # behind the window's plane
+    # seen from 0.5 m in front of the window's side: the light runs to its edge
+    near = look_at(CENTRE + [-0.5, 0.0, HALF[0] - 0.15], CENTRE + [0.0, 0.0, HALF[0] - 0.15])
+    left = out.subset(np.arange(out.count))
+    left.positions[moved[0]] = edge  # where the fit had it
+    with torch.no_grad():
+        lum = render(out, near).image.numpy()[30:42, 40:56] @ WEIGHTS
+        hid = render(left, near).image.numpy()[30:42, 40:56] @ WEIGHTS
+    # the last 15 cm of the window before its side
+    assert float(lum.min()) > 0.9 * entry["radiance"]
+    assert float(hid.min()) < 0.7 * entry["radiance"]
