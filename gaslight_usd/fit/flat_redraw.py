@@ -331,6 +331,12 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         # (window-bright floaters 0.6-1.2 m in front of the bulb and shaded rooms' windows)
         far = np.flatnonzero(lit & ~ahead)
         ahead[far[seen_over(panel, pos[far], cameras, edge)]] = True
+        # and those the fit left behind its plane, outside the room: a light one view
+        # framed smears along that view's rays both ways, and a probe at a grazing angle
+        # sees them past the ceiling round the light (``panels:2``'s second panel +0.8
+        # stops from the probe under the other one, session 66)
+        ahead |= (halo & (d < 0) & (d >= -OFF_SHARE * median_depth) & ~replace
+                  & (radiance > max(white, HALO_SHARE * solved[0])))
         for extra in others:
             if len(extra) and np.median(radiance[extra]) > LAMP_RATIO * solved[0]:
                 ahead[extra] = False
