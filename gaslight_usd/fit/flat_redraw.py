@@ -300,8 +300,9 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
             replace[len(replace) - tail:] = False
         # the wall's or ceiling's own splats a few centimetres in front of the plane, past
         # the rectangle but wide enough to reach over it, hide a corner of the light from
-        # a probe (``panels:7``'s panel 0.4 stops short from the room's middle behind one
-        # 5 cm under it, session 66); set just behind the grid, they still show round it
+        # a probe (``gaslight2usd bench --suite chain --scene panels:7``;
+        # docs/measurements.md, session 66); set just behind the grid, they still show
+        # round it
         reach = REACH_SIGMAS * scene.scales.max(axis=1)
         behind = (slab & ~replace & ~bright & (d > 0) & (a <= panel.half_size[0] + reach)
                   & (b <= panel.half_size[1] + reach))
@@ -333,8 +334,7 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         ahead[far[seen_over(panel, pos[far], cameras, edge)]] = True
         # and those the fit left behind its plane, outside the room: a light one view
         # framed smears along that view's rays both ways, and a probe at a grazing angle
-        # sees them past the ceiling round the light (``panels:2``'s second panel +0.8
-        # stops from the probe under the other one, session 66)
+        # sees them past the ceiling round the light (``--scene panels:2``, session 66)
         ahead |= (halo & (d < 0) & (d >= -OFF_SHARE * median_depth) & ~replace
                   & (radiance > max(white, HALO_SHARE * solved[0])))
         for extra in others:

@@ -436,10 +436,10 @@ def ceiling_at_sparse_points(box: list[Plane], sparse: np.ndarray, tau: float,
 
     The box's planes are found in the start's points, sparse and fill together, and a
     ceiling few photos see is smeared deep in the fill: from photos the ``panels`` rooms'
-    fill crowded 9-12 cm under the ceiling, their panels were outlined on that plane and
-    drawn there, 0.4 stops too bright 0.5 m under them (``gaslight2usd bench --suite
-    chain``; ``docs/measurements.md``, session 66), while the sparse points on the
-    ceiling itself lay within a centimetre of it. The walls are left as found: photos
+    fill crowded under the ceiling, and their panels, outlined on that plane and drawn
+    there, came out too bright under them (``gaslight2usd bench --suite chain --scene
+    panels:2``; ``docs/measurements.md``, session 66), while the sparse points on the
+    ceiling itself lay on it. The walls are left as found: photos
     see them square on, and furniture stands in front of them."""
     up = np.asarray(up, np.float64)
     sparse = np.asarray(sparse, np.float64).reshape(-1, 3)

@@ -288,8 +288,8 @@ def _near_floaters(pos: np.ndarray, idx: np.ndarray, region: np.ndarray, eyes: n
     (:func:`_first_lit_along`). Never past the first of the room's ``planes`` the ray
     crosses: the captured space's boundary at a ceiling few photos see is smeared deep,
     and past the ceiling no other photo frames the place to contradict it (``panels:7``'s
-    ceiling panel from true HDR views, one fit: moved 0.4 m above the ceiling, where the
-    probes saw the ceiling instead; ``docs/measurements.md``, session 66).
+    ceiling panel from true HDR views, one fit: moved above the ceiling, where the probes
+    saw the ceiling instead; ``docs/measurements.md``, session 66).
 
     A light one photo sees keeps that photo's pixels at any depth, and the fit's cheapest
     way to draw it can be a few small splats just in front of the camera (``panels:7``'s
