@@ -350,9 +350,12 @@ def test_a_wall_splat_in_front_of_the_windows_edge_is_set_behind_it():
 def test_bright_splats_behind_the_window_join_it():
     """A light one view framed smears along that view's rays both ways: window-bright
     splats left 0.3 m behind the wall, round the window's edge, are its light and are
-    redrawn with it (a probe at a grazing angle saw them past the wall); dim ones there
-    and bright ones farther back than the redraw reaches stay."""
+    redrawn with it (a probe at a grazing angle saw them past the wall), and so is a
+    bright one 1.5 m behind it that every view framing it sees through the window. A dim
+    one round the edge stays, and so does a bright one as deep off to the side, which
+    some views see through the wall beside the window."""
     from gaslight_usd.fit.backdrop import concatenate
+    from gaslight_usd.fit.flat_redraw import seen_over
 
     scene, window, tail = scene_with_window()
     rng = np.random.default_rng(4)
@@ -361,16 +364,19 @@ def test_bright_splats_behind_the_window_join_it():
                                CENTRE[1] + rng.uniform(-0.3, 0.3, n),
                                CENTRE[2] + HALF[0] + rng.uniform(0.02, 0.12, n)])
     dim = CENTRE + [0.3, 0.2, HALF[0] + 0.05]
-    deep = CENTRE + [1.5, 0.0, 0.0]  # past the reach of the redraw (0.35 x 2.5 m)
+    deep = CENTRE + [1.5, 0.0, 0.0]  # past the prism the redraw takes (0.35 x 2.5 m)
+    aside = CENTRE + [1.5, 0.0, 1.5]
     extra = SplatScene.from_activated(
-        np.concatenate([smeared, dim[None], deep[None]]),
-        np.concatenate([np.full((n, 3), 16.0), np.full((1, 3), 0.2), np.full((1, 3), 16.0)]),
-        np.full((n + 2, 3), 0.03), np.full(n + 2, 0.5))
+        np.concatenate([smeared, dim[None], deep[None], aside[None]]),
+        np.concatenate([np.full((n, 3), 16.0), np.full((1, 3), 0.2), np.full((2, 3), 16.0)]),
+        np.full((n + 3, 3), 0.03), np.full(n + 3, 0.5))
     head = scene.subset(np.arange(scene.count - tail))
     full = concatenate(concatenate(head, extra),
                        scene.subset(np.arange(scene.count - tail, scene.count)))
     cams = [look_at(c, CENTRE) for c in ([-1.0, 1.5, 0.0], [-0.8, 1.2, 1.3],
                                          [-0.5, 1.8, -1.1], [-1.5, 1.4, 0.6])]
+    np.testing.assert_array_equal(seen_over(panel(), np.stack([deep, aside]), cams, 0.2),
+                                  [True, False])
     out, report = redraw_flat_lights(full, [panel()], [window], cams, white=1.0,
                                      median_depth=2.5, weights=WEIGHTS, tail=tail)
     assert len(report.panels) == 1
@@ -378,6 +384,8 @@ def test_bright_splats_behind_the_window_join_it():
     stored = full.positions.round(5).tolist()
     first = head.count
     assert not any(tuple(p) in kept for p in stored[first:first + n])
-    assert tuple(stored[first + n]) in kept and tuple(stored[first + n + 1]) in kept
+    assert tuple(stored[first + n]) in kept
+    assert tuple(stored[first + n + 1]) not in kept
+    assert tuple(stored[first + n + 2]) in kept
     before, after = sums(full, cams), sums(out, cams)
     assert abs(after.sum() / before.sum() - 1.0) < 0.01

@@ -214,8 +214,10 @@ def _solve(scene: SplatScene, panel: Panel, replace: np.ndarray, colours: np.nda
 
 def seen_over(panel: Panel, points: np.ndarray, cameras: Sequence[PinholeCamera],
               margin: float = 0.0) -> np.ndarray:
-    """Per point (N, 3) in front of ``panel``: at least one of ``cameras`` frames it, and
-    every one that does sees ``panel`` (its rectangle grown by ``margin``) behind it."""
+    """Per point (N, 3): at least one of ``cameras`` frames it, and every one that does
+    sees it over ``panel`` (its rectangle grown by ``margin``): a point in front of the
+    panel with the rectangle behind it, a point behind the panel's plane through the
+    rectangle."""
     points = np.asarray(points, np.float64).reshape(-1, 3)
     framed = np.zeros(len(points), np.int64)
     backed = np.ones(len(points), bool)
@@ -232,7 +234,8 @@ def seen_over(panel: Panel, points: np.ndarray, cameras: Sequence[PinholeCamera]
             s = (plane - float(cam.center @ panel.normal)) / along
         hit = cam.center + s[:, None] * ray
         rel = hit - panel.centre
-        on = ((s > 1.0) & (np.abs(rel @ panel.u) <= panel.half_size[0] + margin)
+        crosses = np.where(points @ panel.normal >= plane, s > 1.0, (s > 0.0) & (s < 1.0))
+        on = (crosses & (np.abs(rel @ panel.u) <= panel.half_size[0] + margin)
               & (np.abs(rel @ panel.v) <= panel.half_size[1] + margin))
         framed += inside
         backed &= ~inside | on
@@ -335,8 +338,14 @@ def redraw_flat_lights(scene: SplatScene, panels: Sequence[Panel],
         # and those the fit left behind its plane, outside the room: a light one view
         # framed smears along that view's rays both ways, and a probe at a grazing angle
         # sees them past the ceiling round the light (``--scene panels:2``, session 66)
-        ahead |= (halo & (d < 0) & (d >= -OFF_SHARE * median_depth) & ~replace
-                  & (radiance > max(white, HALO_SHARE * solved[0])))
+        past = ~replace & (d < 0) & (radiance > max(white, HALO_SHARE * solved[0]))
+        ahead |= past & halo & (d >= -OFF_SHARE * median_depth)
+        # farther behind, those every view that frames them sees through the rectangle:
+        # the same smear, deeper (a view that framed a ceiling panel left its light up
+        # to a metre past the ceiling, which a probe saw through the ceiling beside it:
+        # ``--scene panels:2``, session 67)
+        deep = np.flatnonzero(past & ~ahead)
+        ahead[deep[seen_over(panel, pos[deep], cameras, edge)]] = True
         for extra in others:
             if len(extra) and np.median(radiance[extra]) > LAMP_RATIO * solved[0]:
                 ahead[extra] = False
