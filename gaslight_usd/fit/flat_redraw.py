@@ -29,6 +29,10 @@ median depth off it, and farther out where every view that frames them sees the 
 behind them: :func:`seen_over`), that are not another light many times brighter
 (:data:`LAMP_RATIO`), join it and the level is solved again: a fit leaves window-bright
 floaters there that every view sees over the window, and a probe beside it sees a fog.
+So do bright splats behind its plane, round its edge or farther back where every view
+that frames them sees them through the rectangle: a light one view framed smears along
+that view's rays both ways, past the wall or ceiling, where a probe at a grazing angle
+sees it through the surface beside the light.
 The fit redraws only lights a view measured (a true HDR view, merged brackets, a darker
 frame: :func:`gaslight_usd.fit.power.light_sighting`): where every photo clipped a window
 its power is the uplift's fill, a lower bound, and drawn flat it lost more of it near by.
