@@ -48,6 +48,7 @@ from ..render import render
 from ..sightings import sight_lights, view_whites
 from ..splats import SplatScene
 from .backdrop import concatenate, unseen_backdrop
+from .camera_floaters import camera_floaters
 from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
@@ -491,6 +492,25 @@ class Trainer:
         views = self.held or self.train[:: max(1, len(self.train) // 4)]
         before = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
         scene = scene.subset(np.flatnonzero(~big))
+        after = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
+        out.update(held_out_stops_before=round(before, 4), held_out_stops_after=round(after, 4))
+        return scene, out
+
+    def _drop_camera_floaters(self, scene: SplatScene, backdrop: int
+                              ) -> tuple[SplatScene, dict[str, Any]]:
+        """Drop the faint splats floating just in front of a camera (:mod:`.camera_floaters`;
+        not the last ``backdrop``) and say what that cost the held-out views
+        (log-luminance RMSE, stops). Last: the light rules before it (the weighing, the
+        redraw) see the fit as it was."""
+        drop = camera_floaters(scene, np.array([c.center for c in self.data.cameras]),
+                               self.room_planes, self.extent, self.y_weights.cpu().numpy(),
+                               fitted=scene.count - backdrop)
+        out: dict[str, Any] = {"splats": int(drop.sum())}
+        if not out["splats"]:
+            return scene, out
+        views = self.held or self.train[:: max(1, len(self.train) // 4)]
+        before = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
+        scene = scene.subset(np.flatnonzero(~drop))
         after = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
         out.update(held_out_stops_before=round(before, 4), held_out_stops_after=round(after, 4))
         return scene, out
@@ -1192,8 +1212,9 @@ class Trainer:
         if cfg.redraw_flat_lights:
             scene, redrawn = self._redraw_flat_lights(scene, backdrop.count, outlines, lights)
         scene, oversized = self._cut_oversized(scene, backdrop.count)
+        scene, at_cameras = self._drop_camera_floaters(scene, backdrop.count)
         if (sheets or shaded or backdrop.count or lights or surfaced.moved or on_walls.moved
-                or oversized["splats"] or redrawn.panels) and self.held:
+                or oversized["splats"] or redrawn.panels or at_cameras["splats"]) and self.held:
             scores = self._evaluate_scene(scene, self.held)
         seconds = time.perf_counter() - t0
         metrics = {
@@ -1207,6 +1228,7 @@ class Trainer:
             "stop_reason": stop_reason,
             "pruned_idle": pruned,
             "oversized_cut": oversized,
+            "camera_floaters_dropped": at_cameras,
             "init": self.init_method,
             "planes": self.planes.as_dict() if self.planes is not None else None,
             "room_box": self._room_box(),

@@ -1,0 +1,63 @@
+"""Faint splats floating just in front of a camera, dropped after the fit.
+
+A fit leaves faint splats in the open air a few decimetres in front of a camera: the
+photo taken there sees them large and they tint it a little, every other photo sees
+them as specks. A probe placed where that photo was taken (under a lamp, where the
+photographer stood to shoot it) sees them from inside, and the lights through them
+dimmed: from under a shaded lamp, 8 cm from the photo aimed straight up at it, the window
+read 0.6 stops short (``gaslight2usd bench --suite chain --scene shade:7 --method
+"recursive + extra dark frames"``; ``docs/measurements.md``, session 67).
+
+So after the fit the splats fainter than :data:`OPACITY`, no brighter than
+:data:`DIM_RATIO` x the median splat, within :data:`NEAR_SHARE` of the scene's extent of
+a camera and farther than :data:`.fog.FOG_CLEAR_SHARE` of it from every plane of the
+room's box are dropped. Something really there that near a camera is a surface (opaque),
+a light (bright) or the room's own wall. Unlike fog (:mod:`.fog`), which is dropped
+midway so that the fit refits the room without it, these go at the end: each carries
+light for one photo only, and dropping a thousand splats midway sent fits elsewhere
+(better in some rooms, a stop worse in others; session 67).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..splats import SplatScene
+from .fog import FOG_CLEAR_SHARE
+from .planes import Plane
+
+OPACITY = 0.6
+"""Splats at least this opaque near a camera are kept: a surface seen close up (five of
+the floaters that dimmed that window were 0.25-0.57 opaque)."""
+DIM_RATIO = 4.0
+"""Splats brighter than this many times the median splat are kept: a light's glow."""
+NEAR_SHARE = 0.25
+"""How near a camera (share of the scene's extent: 0.4 m in the chain bench's rooms) a
+faint splat is the camera's floater."""
+
+
+def camera_floaters(scene: SplatScene, centres: np.ndarray, planes: list[Plane],
+                    extent: float, y_weights: np.ndarray, fitted: int | None = None
+                    ) -> np.ndarray:
+    """(N,) the splats of ``scene`` that float faint in front of a camera (module
+    docstring); ``centres`` (C, 3) the cameras' centres, ``planes`` the room's box,
+    ``extent`` the scene's size, ``fitted`` how many leading splats are the fit's (the
+    rest, a backdrop, are never taken). None without a box or cameras."""
+    out = np.zeros(scene.count, bool)
+    centres = np.asarray(centres, np.float64).reshape(-1, 3)
+    fitted = scene.count if fitted is None else fitted
+    if not planes or not len(centres) or fitted <= 0:
+        return out
+    points = scene.positions[:fitted].astype(np.float64)
+    normals = np.array([p.normal for p in planes], np.float64)
+    offsets = np.array([p.offset for p in planes], np.float64)
+    clearance = np.min(np.abs(points @ normals.T - offsets), axis=1)
+    gap = np.full(fitted, np.inf)
+    for centre in centres:  # one pass per camera: no (N, C, 3) array
+        gap = np.minimum(gap, np.linalg.norm(points - centre, axis=1))
+    level = scene.base_colours[:fitted].astype(np.float64) @ np.asarray(y_weights, np.float64)
+    out[:fitted] = ((scene.opacities[:fitted] < OPACITY)
+                    & (level <= DIM_RATIO * float(np.median(level)))
+                    & (gap < NEAR_SHARE * extent)
+                    & (clearance > FOG_CLEAR_SHARE * extent))
+    return out
