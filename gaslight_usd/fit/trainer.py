@@ -486,12 +486,19 @@ class Trainer:
             return scene, out
         big = np.zeros(scene.count, bool)
         big[:fitted] = size > limit
-        out["splats"] = int(big.sum())
+        scene, cost = self._without(scene, big)
+        return scene, {**out, **cost}
+
+    def _without(self, scene: SplatScene, drop: np.ndarray
+                 ) -> tuple[SplatScene, dict[str, Any]]:
+        """``scene`` without the splats ``drop`` (N,) and what that cost the held-out
+        views (log-luminance RMSE, stops, before and after; the count alone where none)."""
+        out: dict[str, Any] = {"splats": int(drop.sum())}
         if not out["splats"]:
             return scene, out
         views = self.held or self.train[:: max(1, len(self.train) // 4)]
         before = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
-        scene = scene.subset(np.flatnonzero(~big))
+        scene = scene.subset(np.flatnonzero(~drop))
         after = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
         out.update(held_out_stops_before=round(before, 4), held_out_stops_after=round(after, 4))
         return scene, out
@@ -505,15 +512,7 @@ class Trainer:
         drop = camera_floaters(scene, np.array([c.center for c in self.data.cameras]),
                                self.room_planes, self.extent, self.y_weights.cpu().numpy(),
                                fitted=scene.count - backdrop)
-        out: dict[str, Any] = {"splats": int(drop.sum())}
-        if not out["splats"]:
-            return scene, out
-        views = self.held or self.train[:: max(1, len(self.train) // 4)]
-        before = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
-        scene = scene.subset(np.flatnonzero(~drop))
-        after = self._evaluate_scene(scene, views)["log_lum_rmse_stops"]
-        out.update(held_out_stops_before=round(before, 4), held_out_stops_after=round(after, 4))
-        return scene, out
+        return self._without(scene, drop)
 
     def _choose_degree(self) -> tuple[int, dict[str, float]]:
         views = self.held or self.train[:: max(1, len(self.train) // 4)]
