@@ -229,7 +229,7 @@ def fit(ctx: StageContext) -> StageResult:
                                    "clipped_lights", "fine_power", "placed_by_frames",
                                    "room_box", "lit_floor", "holes_filled",
                                    "fog_dropped", "squashed_onto_planes",
-                                   "shaded_sides_closed")},
+                                   "shaded_sides_closed", "camera_floaters_dropped")},
     )
 
 

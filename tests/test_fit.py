@@ -93,6 +93,8 @@ def test_fit_recovers_views_through_the_cli(synthetic, tmp_path):
     # this small set has no room box: no wall or ceiling to squash its splats onto
     assert fit_stage["metrics"]["room_box"] == []
     assert fit_stage["metrics"]["squashed_onto_planes"] == 0
+    # nor floaters at a camera: those are told from the walls by the box
+    assert fit_stage["metrics"]["camera_floaters_dropped"] == {"splats": 0}
     # no darker frame measured a bulb here: no shaded lamp's sides to close
     assert fit_stage["metrics"]["shaded_sides_closed"] == []
     assert not list(tmp_path.glob(".*checkpoint*"))

@@ -48,7 +48,7 @@ from ..render import render
 from ..sightings import sight_lights, view_whites
 from ..splats import SplatScene
 from .backdrop import concatenate, unseen_backdrop
-from .camera_floaters import camera_floaters
+from .camera_floaters import HELD_OUT_SLACK_STOPS, camera_floaters
 from .checkpoint import load_checkpoint, save_checkpoint
 from .contribution import contributions
 from .data import FitData
@@ -507,12 +507,17 @@ class Trainer:
                               ) -> tuple[SplatScene, dict[str, Any]]:
         """Drop the faint splats floating just in front of a camera (:mod:`.camera_floaters`;
         not the last ``backdrop``) and say what that cost the held-out views
-        (log-luminance RMSE, stops). Last: the light rules before it (the weighing, the
-        redraw) see the fit as it was."""
+        (log-luminance RMSE, stops); keep them (``refused``) where that is over
+        :data:`.camera_floaters.HELD_OUT_SLACK_STOPS`. Last: the light rules before it
+        (the weighing, the redraw) see the fit as it was."""
         drop = camera_floaters(scene, np.array([c.center for c in self.data.cameras]),
                                self.room_planes, self.extent, self.y_weights.cpu().numpy(),
                                fitted=scene.count - backdrop)
-        return self._without(scene, drop)
+        dropped, out = self._without(scene, drop)
+        if out["splats"] and (out["held_out_stops_after"] - out["held_out_stops_before"]
+                              > HELD_OUT_SLACK_STOPS):
+            return scene, {**out, "splats": 0, "refused": out["splats"]}
+        return dropped, out
 
     def _choose_degree(self) -> tuple[int, dict[str, float]]:
         views = self.held or self.train[:: max(1, len(self.train) // 4)]
