@@ -4,9 +4,9 @@ A fit leaves faint splats in the open air a few decimetres in front of a camera:
 photo taken there sees them large and they tint it a little, every other photo sees
 them as specks. A probe placed where that photo was taken (under a lamp, where the
 photographer stood to shoot it) sees them from inside, and the lights through them
-dimmed: from under a shaded lamp, 8 cm from the photo aimed straight up at it, the window
-read 0.6 stops short (``gaslight2usd bench --suite chain --scene shade:7 --method
-"recursive + extra dark frames"``; ``docs/measurements.md``, session 67).
+dimmed: from under a shaded lamp, a few centimetres from the photo aimed straight up at
+it, the window read over half a stop short (``gaslight2usd bench --suite chain --scene
+shade:7 --method "recursive + extra dark frames"``; ``docs/measurements.md``, session 67).
 
 So after the fit the splats fainter than :data:`OPACITY`, no brighter than
 :data:`DIM_RATIO` x the median splat, within :data:`NEAR_SHARE` of the scene's extent of
@@ -15,8 +15,8 @@ room's box are dropped, unless the held-out views object (:data:`HELD_OUT_SLACK_
 Something really there that near a camera is a surface (opaque), a light (bright) or the
 room's own wall. Unlike fog (:mod:`.fog`), which is dropped
 midway so that the fit refits the room without it, these go at the end: each carries
-light for one photo only, and dropping a thousand splats midway sent fits elsewhere
-(better in some rooms, a stop worse in others; session 67).
+light for one photo only, and dropping them all midway sent fits elsewhere (better in
+some rooms, worse in others).
 """
 
 from __future__ import annotations
@@ -28,18 +28,18 @@ from .fog import FOG_CLEAR_SHARE
 from .planes import Plane
 
 OPACITY = 0.6
-"""Splats at least this opaque near a camera are kept: a surface seen close up (five of
-the floaters that dimmed that window were 0.25-0.57 opaque)."""
+"""Splats at least this opaque near a camera are kept: a surface seen close up (a third
+of the floaters that dimmed that window were over the fog's 0.3)."""
 DIM_RATIO = 4.0
 """Splats brighter than this many times the median splat are kept: a light's glow."""
 HELD_OUT_SLACK_STOPS = 0.02
 """The drop is refused where the held-out views read more than this much worse without
-the splats (log-luminance RMSE): then they were something those photos saw (the bundled
-example's fit, in one run of two: 15 splats, +0.57 stops; the shaded rooms' floaters
-cost -0.003..+0.011)."""
+the splats (log-luminance RMSE, stops): then they were something those photos saw (one
+run of the bundled example's fit needed its few by over half a stop; the shaded rooms'
+floaters cost a hundredth or less; ``docs/measurements.md``, session 67)."""
 NEAR_SHARE = 0.25
-"""How near a camera (share of the scene's extent: 0.4 m in the chain bench's rooms) a
-faint splat is the camera's floater."""
+"""How near a camera (share of the scene's extent, about 0.4 m in the chain bench's
+rooms) a faint splat is the camera's floater."""
 
 
 def camera_floaters(scene: SplatScene, centres: np.ndarray, planes: list[Plane],
@@ -48,7 +48,7 @@ def camera_floaters(scene: SplatScene, centres: np.ndarray, planes: list[Plane],
     """(N,) the splats of ``scene`` that float faint in front of a camera (module
     docstring); ``centres`` (C, 3) the cameras' centres, ``planes`` the room's box,
     ``extent`` the scene's size, ``fitted`` how many leading splats are the fit's (the
-    rest, a backdrop, are never taken). None without a box or cameras."""
+    rest, a backdrop, are never taken). None are without a box or cameras."""
     out = np.zeros(scene.count, bool)
     centres = np.asarray(centres, np.float64).reshape(-1, 3)
     fitted = scene.count if fitted is None else fitted
