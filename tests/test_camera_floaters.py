@@ -66,3 +66,50 @@ def test_a_probe_at_the_camera_sees_the_window_whole_once_its_floaters_are_gone(
     assert inside.sum() > 20
     assert abs(float(np.median(cleared[inside])) - 10.0) < 1.0
     assert float(through[inside].mean()) < 0.85 * float(cleared[inside].mean())
+
+
+def test_floaters_a_held_out_photo_saw_are_kept_those_it_did_not_are_dropped():
+    """The fit drops a camera's floaters only where the held-out views do not read worse
+    without them: a held-out photo beside that camera that saw them (something there after
+    all) keeps them; one that saw the wall clear behind them lets them go."""
+    from types import SimpleNamespace
+
+    from test_flat_outlines import look_at
+
+    from gaslight_usd.fit.trainer import Trainer
+    from gaslight_usd.render import render
+
+    rng = np.random.default_rng(7)
+    gy, gz = np.meshgrid(np.linspace(0.6, 2.6, 21), np.linspace(-0.2, 2.0, 23))
+    wall = np.column_stack([np.full(gy.size, 2.45), gy.ravel(), gz.ravel()])
+    haze = CAMERA + [0.25, 0.0, 0.0] + rng.uniform(-0.08, 0.08, (20, 3))
+    pos = np.concatenate([wall, haze])
+    colour = np.concatenate([np.full((len(wall), 3), 1.0), np.full((len(haze), 3), 0.3)])
+    scales = np.concatenate([np.full((len(wall), 3), 0.1) * [0.1, 1, 1],
+                             np.full((len(haze), 3), 0.04)])
+    opac = np.concatenate([np.full(len(wall), 0.99), np.full(len(haze), 0.3)])
+    scene = SplatScene.from_activated(pos, colour, scales, opac)
+    clear = scene.subset(np.arange(len(wall)))
+    target = np.array([2.45, 1.5, 0.9])
+    trained = look_at(CAMERA, target, width=64, height=48, focal=50.0)
+    held = look_at(CAMERA + [-0.05, 0.03, 0.0], target, width=64, height=48, focal=50.0)
+    with torch.no_grad():
+        photos = {"saw them": render(scene, held).image.numpy(),
+                  "saw the wall": render(clear, held).image.numpy()}
+        train_photo = render(scene, trained).image.numpy()
+    kept = {}
+    for name, photo in photos.items():
+        trainer = Trainer.__new__(Trainer)  # the fit's finishing step, on a made-up fit
+        trainer.data = SimpleNamespace(cameras=[trained, held], images=[train_photo, photo])
+        trainer.refiner, trainer.train, trainer.held = None, [0], [1]
+        trainer.room_planes, trainer.extent = _box(), EXTENT
+        trainer.y_weights = torch.tensor(WEIGHTS, dtype=torch.float32)
+        trainer.cfg, trainer.device = SimpleNamespace(background=0.0), "cpu"
+        out, report = trainer._drop_camera_floaters(scene, 0)
+        kept[name] = (out.count, report)
+    assert kept["saw them"][0] == scene.count
+    assert kept["saw them"][1]["refused"] == len(haze)
+    assert kept["saw them"][1]["held_out_stops_after"] > kept["saw them"][1][
+        "held_out_stops_before"] + 0.02
+    assert kept["saw the wall"][0] == len(wall)
+    assert kept["saw the wall"][1]["splats"] == len(haze)
