@@ -1,8 +1,8 @@
 """Faint splats floating just in front of a camera, dropped after the fit.
 
-A fit leaves faint splats in the open air a few decimetres in front of a camera: the
-photo taken there sees them large and they tint it a little, every other photo sees
-them as specks. A probe placed where that photo was taken (under a lamp, where the
+A fit leaves faint splats in the open air a few decimetres from where photos were taken,
+where the training views pin little down (so near a camera, each covers few pixels of
+the others). A probe placed where a photo was taken (under a lamp, where the
 photographer stood to shoot it) sees them from inside, and the lights through them
 dimmed: from under a shaded lamp, a few centimetres from the photo aimed straight up at
 it, the window read over half a stop short (``gaslight2usd bench --suite chain --scene
@@ -13,10 +13,10 @@ So after the fit the splats fainter than :data:`OPACITY`, no brighter than
 a camera and farther than :data:`.fog.FOG_CLEAR_SHARE` of it from every plane of the
 room's box are dropped, unless the held-out views object (:data:`HELD_OUT_SLACK_STOPS`).
 Something really there that near a camera is a surface (opaque), a light (bright) or the
-room's own wall. Unlike fog (:mod:`.fog`), which is dropped
-midway so that the fit refits the room without it, these go at the end: each carries
-light for one photo only, and dropping them all midway sent fits elsewhere (better in
-some rooms, worse in others).
+room's own wall. Unlike fog (:mod:`.fog`), which is dropped midway so that the fit
+refits the room without it, these go at the end: the photos hardly weigh them, and
+dropping every faint open-air splat midway sent fits elsewhere (better in some rooms,
+worse in others).
 """
 
 from __future__ import annotations
