@@ -23,6 +23,22 @@ def _scene(rows) -> SplatScene:
     return SplatScene.from_activated(pos, colour, np.full((len(rows), 3), 0.03), opac)
 
 
+def _sheet_and_haze(ys, zs, level: float, cell: float, haze: np.ndarray
+                    ) -> tuple[SplatScene, int]:
+    """An opaque sheet of splats at x = 2.45 (a wall or window, ``level`` bright) over
+    the grid ``ys`` x ``zs``, then ``haze`` (K, 3) faint grey splats; and the sheet's
+    size."""
+    gy, gz = np.meshgrid(ys, zs)
+    sheet = np.column_stack([np.full(gy.size, 2.45), gy.ravel(), gz.ravel()])
+    n = len(sheet)
+    scene = SplatScene.from_activated(
+        np.concatenate([sheet, haze]),
+        np.concatenate([np.full((n, 3), level), np.full((len(haze), 3), 0.3)]),
+        np.concatenate([np.full((n, 3), cell) * [0.1, 1, 1], np.full((len(haze), 3), 0.04)]),
+        np.concatenate([np.full(n, 0.99), np.full(len(haze), 0.3)]))
+    return scene, n
+
+
 def test_faint_dim_splats_at_a_camera_go_surfaces_lights_walls_and_far_ones_stay():
     near = 0.5 * NEAR_SHARE * EXTENT
     grey = [0.3, 0.3, 0.3]
@@ -47,17 +63,11 @@ def test_a_probe_at_the_camera_sees_the_window_whole_once_its_floaters_are_gone(
     """A probe where the photo was taken looks through the floaters at a bright wall
     patch (the window): with them it reads it dimmed, without them as drawn."""
     rng = np.random.default_rng(3)
-    gy, gz = np.meshgrid(np.linspace(1.2, 2.0, 9), np.linspace(0.0, 1.6, 17))
-    window = np.column_stack([np.full(gy.size, 2.45), gy.ravel(), gz.ravel()])
     fog = CAMERA + rng.uniform(-0.12, 0.12, (30, 3)) + [0.15, 0.1, 0.0]
-    pos = np.concatenate([window, fog])
-    colour = np.concatenate([np.full((len(window), 3), 10.0), np.full((len(fog), 3), 0.3)])
-    scales = np.concatenate([np.full((len(window), 3), 0.08) * [0.1, 1, 1],
-                             np.full((len(fog), 3), 0.04)])
-    opac = np.concatenate([np.full(len(window), 0.99), np.full(len(fog), 0.3)])
-    scene = SplatScene.from_activated(pos, colour, scales, opac)
+    scene, window = _sheet_and_haze(np.linspace(1.2, 2.0, 9), np.linspace(0.0, 1.6, 17),
+                                    10.0, 0.08, fog)
     drop = camera_floaters(scene, CAMERA[None], _box(), EXTENT, WEIGHTS)
-    assert drop[len(window):].all() and not drop[:len(window)].any()
+    assert drop[window:].all() and not drop[:window].any()
 
     with torch.no_grad():
         through = render_latlong(scene, CAMERA, 128) @ WEIGHTS
@@ -80,16 +90,10 @@ def test_floaters_a_held_out_photo_saw_are_kept_those_it_did_not_are_dropped():
     from gaslight_usd.render import render
 
     rng = np.random.default_rng(7)
-    gy, gz = np.meshgrid(np.linspace(0.6, 2.6, 21), np.linspace(-0.2, 2.0, 23))
-    wall = np.column_stack([np.full(gy.size, 2.45), gy.ravel(), gz.ravel()])
     haze = CAMERA + [0.25, 0.0, 0.0] + rng.uniform(-0.08, 0.08, (20, 3))
-    pos = np.concatenate([wall, haze])
-    colour = np.concatenate([np.full((len(wall), 3), 1.0), np.full((len(haze), 3), 0.3)])
-    scales = np.concatenate([np.full((len(wall), 3), 0.1) * [0.1, 1, 1],
-                             np.full((len(haze), 3), 0.04)])
-    opac = np.concatenate([np.full(len(wall), 0.99), np.full(len(haze), 0.3)])
-    scene = SplatScene.from_activated(pos, colour, scales, opac)
-    clear = scene.subset(np.arange(len(wall)))
+    scene, wall = _sheet_and_haze(np.linspace(0.6, 2.6, 21), np.linspace(-0.2, 2.0, 23),
+                                  1.0, 0.1, haze)
+    clear = scene.subset(np.arange(wall))
     target = np.array([2.45, 1.5, 0.9])
     trained = look_at(CAMERA, target, width=64, height=48, focal=50.0)
     held = look_at(CAMERA + [-0.05, 0.03, 0.0], target, width=64, height=48, focal=50.0)
@@ -111,5 +115,5 @@ def test_floaters_a_held_out_photo_saw_are_kept_those_it_did_not_are_dropped():
     assert kept["saw them"][1]["refused"] == len(haze)
     assert kept["saw them"][1]["held_out_stops_after"] > kept["saw them"][1][
         "held_out_stops_before"] + 0.02
-    assert kept["saw the wall"][0] == len(wall)
+    assert kept["saw the wall"][0] == wall
     assert kept["saw the wall"][1]["splats"] == len(haze)
