@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..splats import SplatScene
-from .fog import FOG_CLEAR_SHARE
+from .fog import FOG_CLEAR_SHARE, box_clearance
 from .planes import Plane
 
 OPACITY = 0.6
@@ -55,9 +55,7 @@ def camera_floaters(scene: SplatScene, centres: np.ndarray, planes: list[Plane],
     if not planes or not len(centres) or fitted <= 0:
         return out
     points = scene.positions[:fitted].astype(np.float64)
-    normals = np.array([p.normal for p in planes], np.float64)
-    offsets = np.array([p.offset for p in planes], np.float64)
-    clearance = np.min(np.abs(points @ normals.T - offsets), axis=1)
+    clearance = box_clearance(points, planes)
     gap = np.full(fitted, np.inf)
     for centre in centres:  # one pass per camera: no (N, C, 3) array
         gap = np.minimum(gap, np.linalg.norm(points - centre, axis=1))

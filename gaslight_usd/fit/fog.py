@@ -32,14 +32,19 @@ FOG_CLEAR_SHARE = 0.18
 the walls' and the ceiling's own."""
 
 
+def box_clearance(points: np.ndarray, planes: list[Plane]) -> np.ndarray:
+    """(N,) each point's distance to the nearest of ``planes`` (unbounded, either side)."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    return np.min(np.abs(points @ np.array([p.normal for p in planes], np.float64).T
+                         - np.array([p.offset for p in planes], np.float64)), axis=1)
+
+
 def fog_splats(scene: SplatScene, planes: list[Plane], extent: float) -> np.ndarray:
     """(N,) the splats of ``scene`` that are fog (module docstring), ``planes`` the room's
     box and ``extent`` the scene's size (the cameras' spread); none without a box."""
     if not planes or scene.count == 0:
         return np.zeros(scene.count, bool)
-    points = scene.positions.astype(np.float64)
-    clearance = np.min(np.abs(points @ np.array([p.normal for p in planes]).T
-                              - np.array([p.offset for p in planes])), axis=1)
+    clearance = box_clearance(scene.positions, planes)
     return ((scene.opacities < FOG_OPACITY)
             & (scene.scales.max(axis=1) > FOG_WIDTH_SHARE * extent)
             & (clearance > FOG_CLEAR_SHARE * extent))
